@@ -1,0 +1,1 @@
+#include "vwe_vo/ros/conversions.h"
