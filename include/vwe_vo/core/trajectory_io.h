@@ -1,0 +1,47 @@
+// Trajectory and event files: TUM trajectories (`t px py pz qx qy qz qw`) and the Event Camera
+// Dataset text format (events.txt `t x y p`, calib.txt, groundtruth.txt, extrinsics.txt).
+// Readers throw std::runtime_error naming the file and the line of anything malformed;
+// nothing is skipped silently (comment lines starting with '#' and blank lines are allowed).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "vwe_vo/core/events.h"
+#include "vwe_vo/core/math.h"
+
+namespace vwe_vo {
+
+struct StampedPose {
+  int64_t t_ns = 0;
+  Pose3 T = Pose3::Identity();  // e.g. T_odom_base
+};
+using Trajectory3 = std::vector<StampedPose>;
+
+/// Reads a TUM file. Throws on malformed lines, non-finite values, non-increasing time.
+Trajectory3 readTum(const std::string& path);
+/// Writes a TUM file (9 decimals for time, quaternion with qw last).
+void writeTum(const std::string& path, const Trajectory3& trajectory);
+
+/// Pose at t by interpolation between the neighbouring samples (slerp); false if t is outside
+/// [front, back] of the (time-sorted) trajectory.
+bool interpolateTrajectory(const Trajectory3& trajectory, int64_t t_ns, Pose3* T);
+
+/// Event Camera Dataset events.txt (or .gz): `t x y p` per line, t in seconds, p in {0, 1}.
+/// Throws on malformed lines, events outside width x height (if given > 0), time going back.
+EventVector readEcdEvents(const std::string& path, int width = 0, int height = 0);
+void writeEcdEvents(const std::string& path, const EventVector& events);
+
+/// calib.txt: `fx fy cx cy k1 k2 p1 p2 k3` (the last five optional, default 0).
+struct EcdCalibration {
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+  double k1 = 0, k2 = 0, p1 = 0, p2 = 0, k3 = 0;
+};
+EcdCalibration readEcdCalibration(const std::string& path);
+void writeEcdCalibration(const std::string& path, const EcdCalibration& calib);
+
+/// extrinsics.txt: T_base_cam as `px py pz qx qy qz qw` on one line.
+Pose3 readPoseLine(const std::string& path);
+void writePoseLine(const std::string& path, const Pose3& T);
+
+}  // namespace vwe_vo

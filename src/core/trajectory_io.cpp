@@ -1,0 +1,212 @@
+#include "vwe_vo/core/trajectory_io.h"
+
+#include <zlib.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
+
+namespace vwe_vo {
+namespace {
+
+/// Reads text lines from a plain or gzip-compressed file (zlib reads both).
+class LineReader {
+ public:
+  explicit LineReader(const std::string& path) : path_(path), file_(gzopen(path.c_str(), "rb")) {
+    if (!file_) throw std::runtime_error("cannot open " + path + ": " + std::strerror(errno));
+    gzbuffer(file_, 1 << 20);
+  }
+  ~LineReader() { gzclose(file_); }
+  LineReader(const LineReader&) = delete;
+  LineReader& operator=(const LineReader&) = delete;
+
+  /// Next line without its end-of-line; false at the end of the file.
+  bool next(std::string* line) {
+    line->clear();
+    char buf[4096];
+    while (gzgets(file_, buf, sizeof(buf))) {
+      line->append(buf);
+      if (!line->empty() && line->back() == '\n') break;
+    }
+    if (line->empty()) return false;
+    ++line_number_;
+    while (!line->empty() && (line->back() == '\n' || line->back() == '\r')) line->pop_back();
+    return true;
+  }
+  int lineNumber() const { return line_number_; }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw std::runtime_error(path_ + ":" + std::to_string(line_number_) + ": " + what);
+  }
+
+ private:
+  std::string path_;
+  gzFile file_;
+  int line_number_ = 0;
+};
+
+bool isBlankOrComment(const std::string& line) {
+  for (char c : line) {
+    if (c == '#') return true;
+    if (!std::isspace(static_cast<unsigned char>(c))) return false;
+  }
+  return true;
+}
+
+/// Parses exactly n finite numbers separated by white space; false otherwise.
+bool parseNumbers(const std::string& line, int n_min, int n_max, std::vector<double>* out) {
+  out->clear();
+  const char* p = line.c_str();
+  char* end = nullptr;
+  while (true) {
+    while (*p && std::isspace(static_cast<unsigned char>(*p))) ++p;
+    if (!*p) break;
+    errno = 0;
+    const double v = std::strtod(p, &end);
+    if (end == p || errno == ERANGE || !std::isfinite(v)) return false;
+    if (*end && !std::isspace(static_cast<unsigned char>(*end))) return false;
+    out->push_back(v);
+    p = end;
+  }
+  return static_cast<int>(out->size()) >= n_min && static_cast<int>(out->size()) <= n_max;
+}
+
+std::unique_ptr<FILE, int (*)(FILE*)> openForWriting(const std::string& path) {
+  FILE* f = std::fopen(path.c_str(), "w");
+  if (!f) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
+  return {f, &std::fclose};
+}
+
+Pose3 poseFromTumNumbers(const double* v) {
+  const Quat q(v[6], v[3], v[4], v[5]);  // Eigen: (w, x, y, z)
+  return makePose(q, Vec3(v[0], v[1], v[2]));
+}
+
+std::string poseToTumNumbers(const Pose3& T) {
+  const Quat q(T.linear());
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), "%.9f %.9f %.9f %.9f %.9f %.9f %.9f", T.translation().x(),
+                T.translation().y(), T.translation().z(), q.x(), q.y(), q.z(), q.w());
+  return buf;
+}
+
+}  // namespace
+
+Trajectory3 readTum(const std::string& path) {
+  LineReader in(path);
+  Trajectory3 traj;
+  std::string line;
+  std::vector<double> v;
+  while (in.next(&line)) {
+    if (isBlankOrComment(line)) continue;
+    if (!parseNumbers(line, 8, 8, &v))
+      in.fail("expected 8 numbers 't px py pz qx qy qz qw', got '" + line + "'");
+    const double qn = std::sqrt(v[4] * v[4] + v[5] * v[5] + v[6] * v[6] + v[7] * v[7]);
+    if (std::abs(qn - 1.0) > 1e-3) in.fail("quaternion is not unit length (norm " + std::to_string(qn) + ")");
+    StampedPose sp;
+    sp.t_ns = secToNs(v[0]);
+    sp.T = poseFromTumNumbers(v.data() + 1);
+    if (!traj.empty() && sp.t_ns <= traj.back().t_ns)
+      in.fail("time " + std::to_string(v[0]) + " s is not after the previous pose's");
+    traj.push_back(sp);
+  }
+  return traj;
+}
+
+void writeTum(const std::string& path, const Trajectory3& trajectory) {
+  auto f = openForWriting(path);
+  for (const StampedPose& sp : trajectory)
+    std::fprintf(f.get(), "%.9f %s\n", nsToSec(sp.t_ns), poseToTumNumbers(sp.T).c_str());
+}
+
+bool interpolateTrajectory(const Trajectory3& traj, int64_t t_ns, Pose3* T) {
+  if (traj.empty() || t_ns < traj.front().t_ns || t_ns > traj.back().t_ns) return false;
+  const auto it = std::lower_bound(traj.begin(), traj.end(), t_ns,
+                                   [](const StampedPose& p, int64_t t) { return p.t_ns < t; });
+  if (it->t_ns == t_ns) {
+    *T = it->T;
+    return true;
+  }
+  const StampedPose& b = *it;
+  const StampedPose& a = *(it - 1);
+  *T = interpolatePose(a.T, b.T, static_cast<double>(t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns));
+  return true;
+}
+
+EventVector readEcdEvents(const std::string& path, int width, int height) {
+  LineReader in(path);
+  EventVector events;
+  std::string line;
+  std::vector<double> v;
+  while (in.next(&line)) {
+    if (isBlankOrComment(line)) continue;
+    if (!parseNumbers(line, 4, 4, &v)) in.fail("expected 4 numbers 't x y p', got '" + line + "'");
+    if (v[1] < 0 || v[2] < 0 || v[1] != std::floor(v[1]) || v[2] != std::floor(v[2]) || v[1] > 65535 ||
+        v[2] > 65535)
+      in.fail("pixel coordinates must be non-negative integers, got '" + line + "'");
+    if ((width > 0 && v[1] >= width) || (height > 0 && v[2] >= height))
+      in.fail("event at (" + std::to_string(int(v[1])) + ", " + std::to_string(int(v[2])) +
+              ") is outside the " + std::to_string(width) + "x" + std::to_string(height) + " sensor");
+    if (v[3] != 0 && v[3] != 1 && v[3] != -1) in.fail("polarity must be 0 or 1, got '" + line + "'");
+    Event e;
+    e.t_ns = secToNs(v[0]);
+    e.x = static_cast<uint16_t>(v[1]);
+    e.y = static_cast<uint16_t>(v[2]);
+    e.polarity = v[3] > 0 ? 1 : -1;
+    if (!events.empty() && e.t_ns < events.back().t_ns) in.fail("time goes backwards at " + std::to_string(v[0]) + " s");
+    events.push_back(e);
+  }
+  return events;
+}
+
+void writeEcdEvents(const std::string& path, const EventVector& events) {
+  auto f = openForWriting(path);
+  for (const Event& e : events)
+    std::fprintf(f.get(), "%.9f %u %u %d\n", nsToSec(e.t_ns), e.x, e.y, e.polarity > 0 ? 1 : 0);
+}
+
+EcdCalibration readEcdCalibration(const std::string& path) {
+  LineReader in(path);
+  std::string line;
+  std::vector<double> v;
+  while (in.next(&line)) {
+    if (isBlankOrComment(line)) continue;
+    if (!parseNumbers(line, 4, 9, &v)) in.fail("expected 'fx fy cx cy [k1 k2 p1 p2 k3]', got '" + line + "'");
+    v.resize(9, 0.0);
+    EcdCalibration c{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]};
+    if (c.fx <= 0 || c.fy <= 0) in.fail("focal lengths must be positive");
+    return c;
+  }
+  throw std::runtime_error(path + ": empty calibration file");
+}
+
+void writeEcdCalibration(const std::string& path, const EcdCalibration& c) {
+  auto f = openForWriting(path);
+  std::fprintf(f.get(), "%.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g\n", c.fx, c.fy, c.cx, c.cy, c.k1,
+               c.k2, c.p1, c.p2, c.k3);
+}
+
+Pose3 readPoseLine(const std::string& path) {
+  LineReader in(path);
+  std::string line;
+  std::vector<double> v;
+  while (in.next(&line)) {
+    if (isBlankOrComment(line)) continue;
+    if (!parseNumbers(line, 7, 7, &v)) in.fail("expected 'px py pz qx qy qz qw', got '" + line + "'");
+    const double qn = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
+    if (std::abs(qn - 1.0) > 1e-3) in.fail("quaternion is not unit length");
+    return poseFromTumNumbers(v.data());
+  }
+  throw std::runtime_error(path + ": empty pose file");
+}
+
+void writePoseLine(const std::string& path, const Pose3& T) {
+  auto f = openForWriting(path);
+  std::fprintf(f.get(), "%s\n", poseToTumNumbers(T).c_str());
+}
+
+}  // namespace vwe_vo
