@@ -1,0 +1,109 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+#include "vwe_vo/core/camera.h"
+
+using namespace vwe_vo;
+
+namespace {
+const std::string kConfig = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
+
+std::string writeTemp(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + name;
+  std::ofstream(path) << text;
+  return path;
+}
+}  // namespace
+
+TEST(Camera, LoadsShippedDavis346Calibration) {
+  const CameraCalibration c = loadCameraCalibrationYaml(kConfig);
+  EXPECT_EQ(c.width, 346);
+  EXPECT_EQ(c.height, 260);
+  EXPECT_GT(c.fx, 100);
+  EXPECT_NE(c.distortion[0], 0.0);
+}
+
+TEST(Camera, ProjectOfBearingRoundTripsOverWholeSensor) {
+  const CameraModel cam(loadCameraCalibrationYaml(kConfig));
+  double worst = 0;
+  for (int y = 0; y < cam.height(); ++y) {
+    for (int x = 0; x < cam.width(); ++x) {
+      const Eigen::Vector3f& f = cam.bearing(x, y);
+      ASSERT_NEAR(f.norm(), 1.0f, 1e-5f);
+      Vec2 uv;
+      ASSERT_TRUE(cam.project(3.7 * f.cast<double>(), &uv));
+      worst = std::max(worst, (uv - Vec2(x, y)).norm());
+    }
+  }
+  EXPECT_LT(worst, 1e-3) << "worst round-trip error in px";
+}
+
+TEST(Camera, SubPixelBearingAgreesWithTable) {
+  const CameraModel cam(loadCameraCalibrationYaml(kConfig));
+  for (int y : {0, 77, 259})
+    for (int x : {0, 150, 345}) {
+      const Vec3 b = cam.bearingAt(x, y);
+      EXPECT_LT((b - cam.bearing(x, y).cast<double>()).norm(), 1e-5);
+    }
+}
+
+TEST(Camera, DistortionMovesCornersInward) {
+  // Barrel distortion (k1 < 0): a corner ray lands nearer the centre than a pinhole would put it.
+  const CameraModel cam(loadCameraCalibrationYaml(kConfig));
+  const Vec3 p(0.6, 0.45, 1.0);
+  Vec2 uv;
+  ASSERT_TRUE(cam.project(p, &uv));
+  const auto& c = cam.calibration();
+  EXPECT_LT(uv.x(), c.fx * 0.6 + c.cx);
+  EXPECT_FALSE(cam.project(Vec3(0.1, 0.1, -1.0), &uv));
+}
+
+TEST(Camera, InvalidCalibrationsAreRefusedNamingTheField) {
+  CameraCalibration good = loadCameraCalibrationYaml(kConfig);
+  auto expectThrowMentioning = [](CameraCalibration c, const std::string& field) {
+    try {
+      c.validate();
+      FAIL() << "accepted a calibration with bad " << field;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  CameraCalibration c = good;
+  c.fx = 0;
+  expectThrowMentioning(c, "fx");
+  c = good;
+  c.fy = std::numeric_limits<double>::quiet_NaN();
+  expectThrowMentioning(c, "fy");
+  c = good;
+  c.width = 0;
+  expectThrowMentioning(c, "image size");
+  c = good;
+  c.distortion[1] = std::numeric_limits<double>::infinity();
+  expectThrowMentioning(c, "k2");
+  c = good;
+  c.cx = 1000;
+  expectThrowMentioning(c, "cx");
+  EXPECT_THROW(CameraModel{c}, std::invalid_argument);
+}
+
+TEST(Camera, MalformedYamlNamesFileAndField) {
+  const std::string p1 = writeTemp("cam_missing.yaml", "image_width: 346\ncamera_matrix: {data: [1,0,0,0,1,0,0,0,1]}\n");
+  try {
+    loadCameraCalibrationYaml(p1);
+    FAIL();
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("cam_missing.yaml"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("image_height"), std::string::npos);
+  }
+  const std::string p2 = writeTemp("cam_zero.yaml",
+                                   "image_width: 346\nimage_height: 260\ncamera_matrix: {data: [0,0,170,0,250,130,0,0,1]}\n");
+  try {
+    loadCameraCalibrationYaml(p2);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("fx"), std::string::npos) << e.what();
+  }
+}
