@@ -1,0 +1,91 @@
+// The projective voxel volume in front of a reference camera and the one voting kernel that both
+// the Volume of Warped Events (front-end, back-end) and the EMVS disparity-space image (mapping)
+// use. A ray o + lambda d (reference camera frame) meets the plane z = z_l at the virtual-pinhole
+// pixel u_l = fx (d_x/d_z + rho_l (o_x - o_z d_x/d_z)) + cx with rho_l = 1/z_l: linear in the
+// inverse depth, so with planes uniform in inverse depth a vote costs a multiply-add per plane.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "vwe_vo/core/math.h"
+#include "vwe_vo/core/thread_pool.h"
+
+namespace vwe_vo {
+
+struct VolumeOptions {
+  double grid_scale = 0.5;   // grid resolution relative to the sensor (0.5 = half resolution)
+  int margin_px = 8;         // grid padding around the image on each side [grid px]
+  int num_planes = 30;       // depth planes, uniform in inverse depth
+  double z_min_m = 0.4;      // nearest plane [m]
+  double z_max_m = 12.0;     // farthest plane [m]
+  int num_threads = 2;       // threads for voting (split over planes)
+  void validate() const;     // throws std::invalid_argument naming the field
+};
+
+/// A ray in the reference camera frame as the voting kernel needs it: its pixel in the virtual
+/// pinhole at inverse depth rho is (u0 + rho * du, v0 + rho * dv); valid for rho < rho_max.
+struct VolumeRay {
+  float u0, v0, du, dv;
+  float rho_max;
+};
+
+/// Converts origin o and direction d (reference camera frame, d_z > 0) to a VolumeRay for the
+/// virtual pinhole (fx, fy, cx, cy). Returns false if d_z is not positive.
+bool makeVolumeRay(const Vec3& o, const Vec3& d, double fx, double fy, double cx, double cy, VolumeRay* ray);
+
+class ProjectiveVolume {
+ public:
+  /// sensor_* describe the undistorted virtual pinhole of the full-resolution sensor.
+  ProjectiveVolume(const VolumeOptions& options, int sensor_width, int sensor_height, double fx, double fy,
+                   double cx, double cy);
+
+  const VolumeOptions& options() const { return options_; }
+  int width() const { return width_; }
+  int height() const { return height_; }
+  int numPlanes() const { return options_.num_planes; }
+  size_t numVoxels() const { return size_t(width_) * height_ * options_.num_planes; }
+  double planeDepth(int l) const { return 1.0 / rho_[l]; }
+  double planeInverseDepth(int l) const { return rho_[l]; }
+  /// The volume's virtual pinhole (grid pixels).
+  double fx() const { return fx_; }
+  double fy() const { return fy_; }
+  double cx() const { return cx_; }
+  double cy() const { return cy_; }
+
+  /// Bilinear votes of every ray into every plane it meets inside the grid (grid must be clear).
+  /// Returns the number of plane-votes cast. Afterwards sum() and sumSquares() are valid.
+  size_t vote(const std::vector<VolumeRay>& rays);
+  /// Sum of all voxels and sum of squares (accumulated while voting, no pass over the grid).
+  double sum() const { return sum_; }
+  double sumSquares() const { return sum_sq_; }
+  /// Variance over all voxels: sumSquares/N - (sum/N)^2.
+  double variance() const;
+
+  /// For the gradient of variance(): per ray, the sums over planes of (V - mean)-weighted
+  /// kernel derivatives, s = [S_u0, S_du, S_v0, S_dv] with dVar/dray = (2/N) s . d[u0,du,v0,dv].
+  /// Requires the votes of vote() to be in the grid.
+  void varianceRaySensitivities(const std::vector<VolumeRay>& rays, std::vector<Eigen::Vector4d>* s) const;
+
+  /// Clears what vote() touched (cost bounded by the votes, not the grid).
+  void clear(const std::vector<VolumeRay>& rays);
+
+  /// Voxel value (for tests, EMVS argmax, images).
+  float at(int x, int y, int l) const { return grid_[(size_t(l) * height_ + y) * width_ + x]; }
+  const std::vector<float>& data() const { return grid_; }
+
+ private:
+  template <typename Fn>
+  void forEachVote(const VolumeRay& r, int l, Fn&& fn) const;
+
+  VolumeOptions options_;
+  int width_, height_;
+  double fx_, fy_, cx_, cy_;
+  std::vector<double> rho_;
+  std::vector<float> grid_;
+  double sum_ = 0.0, sum_sq_ = 0.0;
+  size_t last_votes_ = 0;
+  mutable ThreadPool pool_;
+};
+
+}  // namespace vwe_vo

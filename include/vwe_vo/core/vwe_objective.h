@@ -1,0 +1,59 @@
+// The Volume of Warped Events objective (paper eq. 2-5): the events of a window become rays
+// o_k + lambda d_k through the reference camera, with o_k = t_Cr_Ct(t_k), d_k = R_Cr_Ct(t_k) f(x_k)
+// from any TrajectoryModel; the variance of their ray density in a ProjectiveVolume is the
+// contrast, and its analytic gradient w.r.t. the model parameters drives the optimisers.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/events.h"
+#include "vwe_vo/core/projective_volume.h"
+#include "vwe_vo/core/trajectory_model.h"
+
+namespace vwe_vo {
+
+/// Deterministic uniform subsampling to at most max_events (every k-th event on a fractional
+/// stride, the phase chosen from seed). Returns the input unchanged if it is small enough.
+EventVector subsampleEvents(const EventVector& events, size_t max_events, uint64_t seed);
+
+struct VweEvaluation {
+  double variance = 0.0;
+  size_t rays = 0;           // events turned into rays
+  size_t skipped_time = 0;   // events the model does not cover (not extrapolated)
+  size_t skipped_behind = 0; // rays pointing away from the reference camera
+  size_t votes = 0;          // plane votes cast
+};
+
+class VweObjective {
+ public:
+  /// The volume is shared (one grid, reused for every evaluation); both must outlive this.
+  VweObjective(const CameraModel& camera, ProjectiveVolume* volume);
+
+  /// Variance of the VWE of `events` warped by `model`. If gradient is not null it is resized to
+  /// model.numParams() and set to dVariance/dtheta. Leaves the volume clear.
+  VweEvaluation evaluate(const EventVector& events, const TrajectoryModel& model,
+                         Eigen::VectorXd* gradient = nullptr);
+
+  /// As evaluate(), but leaves the votes in the volume (for images / depth extraction);
+  /// call volume->clear(lastRays()) afterwards.
+  VweEvaluation voteOnly(const EventVector& events, const TrajectoryModel& model);
+  const std::vector<VolumeRay>& lastRays() const { return rays_; }
+
+ private:
+  VweEvaluation buildRays(const EventVector& events, const TrajectoryModel& model, bool with_jacobian);
+
+  const CameraModel& camera_;
+  ProjectiveVolume* volume_;
+  std::vector<VolumeRay> rays_;
+  // Per ray: derivatives of [u0, du, v0, dv] w.r.t. the parameters that move it.
+  std::vector<int> jac_begin_;
+  std::vector<int> jac_param_;
+  std::vector<Eigen::Vector4d> jac_value_;
+  std::vector<Eigen::Vector4d> sensitivities_;
+  PoseJacobian pose_jac_;
+};
+
+}  // namespace vwe_vo

@@ -1,0 +1,161 @@
+// The VWE objective against independent truths: a brute-force variance over the whole grid,
+// central finite differences of its gradient, single- vs multi-threaded results, and the
+// location of its maximum for events generated from a known motion.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "vwe_vo/core/vwe_objective.h"
+
+using namespace vwe_vo;
+
+namespace {
+
+/// Camera yawing at w [rad/s] about its up axis (-y) while moving forward (+z) at v [m/s].
+class YawForwardModel : public TrajectoryModel {
+ public:
+  YawForwardModel(double w, double v) : w_(w), v_(v) {}
+  int numParams() const override { return 2; }
+  int64_t referenceTime() const override { return 0; }
+  bool covers(int64_t) const override { return true; }
+  Pose3 T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const override {
+    const double dt = nsToSec(t_ns);
+    const Vec3 axis(0, -1, 0);
+    const Mat3 R = Eigen::AngleAxisd(w_ * dt, axis).toRotationMatrix();
+    const Vec3 t(0, 0, v_ * dt);
+    if (jac) {
+      jac->clear();
+      jac->add(0, dt * skew(axis) * R, Vec3::Zero());
+      jac->add(1, Mat3::Zero(), Vec3(0, 0, dt));
+    }
+    return makePose(R, t);
+  }
+  double w_, v_;
+};
+
+CameraCalibration testCalibration() {
+  CameraCalibration c;
+  c.width = 346;
+  c.height = 260;
+  c.fx = c.fy = 250;
+  c.cx = 173;
+  c.cy = 130;
+  c.distortion = {-0.3, 0.1, 0, 0, 0};
+  return c;
+}
+
+/// Events of random 3D points seen by a camera moving with `truth`, times in [-0.15, 0.15] s.
+EventVector makeEvents(const CameraModel& cam, const TrajectoryModel& truth, int n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> ux(-1, 1), uz(0, 1), ut(-0.15, 0.15);
+  std::vector<Vec3> points;
+  for (int i = 0; i < 400; ++i) {
+    const double z = 1.0 + 7.0 * uz(rng);
+    points.emplace_back(ux(rng) * 0.6 * z, ux(rng) * 0.45 * z, z);
+  }
+  EventVector events;
+  while (int(events.size()) < n) {
+    const int64_t t = secToNs(ut(rng));
+    const Vec3 p_Ct = truth.T_Cr_Ct(t, nullptr).inverse() * points[rng() % points.size()];
+    Vec2 uv;
+    if (!cam.project(p_Ct, &uv)) continue;
+    const int x = int(std::lround(uv.x())), y = int(std::lround(uv.y()));
+    if (!cam.inside(x, y)) continue;
+    Event e;
+    e.t_ns = t;
+    e.x = uint16_t(x);
+    e.y = uint16_t(y);
+    events.push_back(e);
+  }
+  std::sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.t_ns < b.t_ns; });
+  return events;
+}
+
+VolumeOptions volumeOptions(int threads) {
+  VolumeOptions o;
+  o.num_planes = 20;
+  o.z_min_m = 0.8;
+  o.z_max_m = 10;
+  o.num_threads = threads;
+  return o;
+}
+
+}  // namespace
+
+TEST(VweObjective, IncrementalVarianceEqualsBruteForce) {
+  const CameraModel cam(testCalibration());
+  ProjectiveVolume volume(volumeOptions(2), cam.width(), cam.height(), 250, 250, 173, 130);
+  VweObjective obj(cam, &volume);
+  const YawForwardModel truth(0.5, 0.4);
+  const EventVector ev = makeEvents(cam, truth, 3000, 1);
+  const VweEvaluation e = obj.voteOnly(ev, truth);
+  double s = 0, q = 0;
+  for (float v : volume.data()) {
+    s += v;
+    q += double(v) * v;
+  }
+  const double n = double(volume.numVoxels());
+  EXPECT_NEAR(e.variance, q / n - (s / n) * (s / n), 1e-6 * e.variance);
+  EXPECT_GT(e.votes, 3000u * 10);
+  volume.clear(obj.lastRays());
+  for (float v : volume.data()) ASSERT_EQ(v, 0.0f);
+}
+
+TEST(VweObjective, GradientMatchesCentralFiniteDifferences) {
+  const CameraModel cam(testCalibration());
+  ProjectiveVolume volume(volumeOptions(2), cam.width(), cam.height(), 250, 250, 173, 130);
+  VweObjective obj(cam, &volume);
+  const EventVector ev = makeEvents(cam, YawForwardModel(0.5, 0.4), 4000, 2);
+  for (double w : {0.3, 0.45, 0.7}) {
+    YawForwardModel m(w, 0.4);
+    Eigen::VectorXd g;
+    obj.evaluate(ev, m, &g);
+    for (int k = 0; k < 2; ++k) {
+      const double h = 1e-4;
+      YawForwardModel mp = m, mm = m;
+      (k == 0 ? mp.w_ : mp.v_) += h;
+      (k == 0 ? mm.w_ : mm.v_) -= h;
+      const double fd = (obj.evaluate(ev, mp).variance - obj.evaluate(ev, mm).variance) / (2 * h);
+      EXPECT_NEAR(g[k], fd, 5e-3 * std::abs(fd) + 1e-9) << "param " << k << " at w=" << w;
+    }
+  }
+}
+
+TEST(VweObjective, MultiThreadedEqualsSingleThreaded) {
+  const CameraModel cam(testCalibration());
+  ProjectiveVolume v1(volumeOptions(1), cam.width(), cam.height(), 250, 250, 173, 130);
+  ProjectiveVolume v2(volumeOptions(2), cam.width(), cam.height(), 250, 250, 173, 130);
+  VweObjective o1(cam, &v1), o2(cam, &v2);
+  const EventVector ev = makeEvents(cam, YawForwardModel(0.5, 0.4), 3000, 3);
+  const YawForwardModel m(0.4, 0.4);
+  Eigen::VectorXd g1, g2;
+  const double var1 = o1.evaluate(ev, m, &g1).variance, var2 = o2.evaluate(ev, m, &g2).variance;
+  EXPECT_NEAR(var1, var2, 1e-9 * var1);
+  EXPECT_NEAR(g1[0], g2[0], 1e-5 * g1.norm());
+  EXPECT_NEAR(g1[1], g2[1], 1e-5 * g1.norm());
+}
+
+TEST(VweObjective, MaximumAtTheTrueYawRate) {
+  const CameraModel cam(testCalibration());
+  ProjectiveVolume volume(volumeOptions(2), cam.width(), cam.height(), 250, 250, 173, 130);
+  VweObjective obj(cam, &volume);
+  const double w_true = 25.0 / kDegPerRad;
+  const EventVector ev = makeEvents(cam, YawForwardModel(w_true, 0.4), 6000, 4);
+  double best = -1, best_w = 0;
+  for (double w_deg = 0; w_deg <= 50; w_deg += 0.25) {
+    const double var = obj.evaluate(ev, YawForwardModel(w_deg / kDegPerRad, 0.4)).variance;
+    if (var > best) best = var, best_w = w_deg;
+  }
+  EXPECT_NEAR(best_w, 25.0, 0.5);
+}
+
+TEST(VweObjective, SubsamplingIsDeterministicAndBounded) {
+  EventVector ev(10000);
+  for (size_t i = 0; i < ev.size(); ++i) ev[i].t_ns = int64_t(i);
+  const EventVector a = subsampleEvents(ev, 1000, 7), b = subsampleEvents(ev, 1000, 7);
+  ASSERT_EQ(a.size(), 1000u);
+  for (size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a[i].t_ns, b[i].t_ns);
+  for (size_t i = 1; i < a.size(); ++i) ASSERT_GT(a[i].t_ns, a[i - 1].t_ns);
+  EXPECT_GT(a.back().t_ns, 9000);  // spans the window
+  EXPECT_EQ(subsampleEvents(ev, 20000, 7).size(), ev.size());
+}
