@@ -1,0 +1,118 @@
+// The front-end: per window of events, the 1-DoF Ackermann arc (yaw rate omega at a fixed
+// speed v) that maximises the variance of the Volume of Warped Events; arcs chained into a
+// dead-reckoned pose. Synchronous and ROS-free: the offline runner and frontend_node drive it.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "vwe_vo/core/ackermann_arc.h"
+#include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/events.h"
+#include "vwe_vo/core/projective_volume.h"
+#include "vwe_vo/core/vwe_objective.h"
+
+namespace vwe_vo {
+
+enum class ArcStatus : uint8_t { kOk = 0, kStandstill = 1, kLost = 2, kLowEvents = 3 };
+const char* toString(ArcStatus s);
+
+struct FrontendOptions {
+  VolumeOptions volume;                    // the VWE grid of every window
+  bool window_by_count = false;            // windows of window_events events instead of a duration
+  double window_duration_s = 0.3;          // window length when by duration [s]
+  size_t window_events = 60000;            // window size when by count [events]
+  size_t max_events_per_volume = 8000;     // events voted per window (uniform subsampling)
+  double nominal_speed_mps = 0.3;          // v when no odometry is given [m/s]
+  double omega_max_rad_s = 1.2;            // |omega| bound of the full scan [rad/s]
+  double scan_half_range_rad_s = 0.35;     // scan around the previous omega [rad/s]
+  double scan_step_rad_s = 0.02;           // coarse scan step [rad/s]
+  double refine_tolerance_rad_s = 2e-4;    // 1-D refinement stops at this bracket width [rad/s]
+  double standstill_event_rate_hz = 30000; // below this event rate the vehicle is standing [ev/s]
+  double standstill_speed_mps = 0.02;      // odometry speed below this means standstill [m/s]
+  size_t min_events = 1500;                // fewer events in a window: LOW_EVENTS, omega held
+  double min_confidence = 0.02;            // below: LOST, next window scans the full range
+  bool use_gyro_prior = false;             // centre and narrow the scan on the gyro yaw rate
+  double gyro_prior_half_range_rad_s = 0.1;  // scan half range around the gyro yaw rate [rad/s]
+  double max_backwards_jump_s = 0.05;      // events older than newest - this trigger a reset [s]
+  uint64_t seed = 1;                       // subsampling seed
+  void validate() const;                   // throws std::invalid_argument naming the field
+};
+
+/// One front-end window's result (mirrors vwe_vo/AckermannArc).
+struct ArcEstimate {
+  int64_t t_ref_ns = 0, t_start_ns = 0, t_end_ns = 0;
+  double omega = 0.0, v = 0.0;
+  double contrast = 0.0, confidence = 0.0;
+  uint32_t num_events = 0;      // events voted (after subsampling)
+  size_t window_events = 0;     // events in the window (before subsampling)
+  ArcStatus status = ArcStatus::kOk;
+  int evaluations = 0;          // objective evaluations spent
+};
+
+struct FrontendStats {
+  size_t events_in = 0, events_outside = 0, events_out_of_order = 0;
+  size_t windows = 0, windows_dropped = 0, resets = 0;
+  size_t evaluations = 0;
+};
+
+class Frontend {
+ public:
+  Frontend(const FrontendOptions& options, const CameraModel& camera, const Pose3& T_base_cam);
+
+  const FrontendOptions& options() const { return options_; }
+  /// Adds time-ordered events. Events outside the sensor are dropped and counted; a jump
+  /// back in time larger than max_backwards_jump_s resets the front-end (returns true), a
+  /// smaller one drops the late events (counted).
+  bool addEvents(const EventVector& events);
+  /// Wheel odometry speed and yaw rate at t (optional input).
+  void addOdometry(int64_t t_ns, double v_mps, double yaw_rate_rad_s);
+  /// Gyro yaw rate of base_link at t (optional input).
+  void addGyro(int64_t t_ns, double yaw_rate_rad_s);
+
+  /// Estimates every window that is complete. Returns the new arcs (also kept for the pose).
+  std::vector<ArcEstimate> process();
+  /// Skips every complete window but the newest `keep` (a node that falls behind); counted.
+  size_t dropBacklog(size_t keep);
+  /// Complete windows waiting in the buffer.
+  size_t pendingWindows() const;
+
+  /// Estimates one window of events about t_ref (exposed for tests and the objective plots).
+  ArcEstimate estimateWindow(const EventVector& window_events, int64_t t_ref_ns, double v, double omega_center,
+                             double half_range);
+  /// Variance of the VWE of `events` for an arc (omega, v) about t_ref.
+  double contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v);
+
+  /// Dead-reckoned pose of base_link in odom at t (arcs chained from the identity).
+  Pose3 T_odom_base(int64_t t_ns) const;
+  bool hasPose() const { return chain_ != nullptr && chain_->numArcs() > 0; }
+  const FrontendStats& stats() const { return stats_; }
+  void reset();
+
+ private:
+  bool nextWindow(EventVector* window, int64_t* t0, int64_t* t1) const;
+  double speedAt(int64_t t0_ns, int64_t t1_ns, bool* standstill) const;
+  bool gyroAt(int64_t t0_ns, int64_t t1_ns, double* yaw_rate) const;
+
+  FrontendOptions options_;
+  const CameraModel& camera_;
+  Pose3 T_base_cam_;
+  ProjectiveVolume volume_;
+  VweObjective objective_;
+  EventBuffer buffer_;
+  int64_t next_window_start_ns_ = -1;
+  struct RateSample {
+    int64_t t_ns;
+    double v, yaw_rate;
+  };
+  std::deque<RateSample> odometry_, gyro_;
+  double last_omega_ = 0.0;
+  bool lost_ = true;
+  std::unique_ptr<ArcChain> chain_;
+  FrontendStats stats_;
+};
+
+}  // namespace vwe_vo

@@ -1,0 +1,41 @@
+// Fills the core options structs from the package's YAML configuration (config/vwe_vo.yaml).
+// Keys absent from the file keep the struct's defaults; unknown keys are reported so that a
+// typo is not silently ignored; every struct is validated after loading.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/frontend.h"
+#include "vwe_vo/core/math.h"
+
+namespace YAML {
+class Node;
+}
+
+namespace vwe_vo {
+
+void loadOptions(const YAML::Node& node, const std::string& section, VolumeOptions* options,
+                 std::vector<std::string>* warnings);
+void loadOptions(const YAML::Node& node, const std::string& section, FrontendOptions* options,
+                 std::vector<std::string>* warnings);
+
+/// Everything a pipeline run needs from one configuration file.
+struct PipelineConfig {
+  std::string path;                // the file read (empty: defaults)
+  CameraCalibration camera;        // from `camera_calibration` (relative to the file's folder)
+  Pose3 T_base_cam = Pose3::Identity();
+  FrontendOptions frontend;
+  std::vector<std::string> warnings;  // unknown keys and the like
+};
+
+/// Reads a configuration file (throws std::runtime_error / std::invalid_argument naming the
+/// file and key on malformed values). An empty path gives the shipped defaults, with the
+/// calibration from default_calibration_path.
+PipelineConfig loadPipelineConfig(const std::string& path, const std::string& default_calibration_path = "");
+
+/// The folder of the package's shipped config/ (compiled in; overridable by $VWE_VO_CONFIG_DIR).
+std::string defaultConfigDir();
+
+}  // namespace vwe_vo

@@ -1,0 +1,112 @@
+#include "vwe_vo/core/offline_pipeline.h"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <stdexcept>
+#include <sys/stat.h>
+
+namespace vwe_vo {
+namespace {
+using Clock = std::chrono::steady_clock;
+double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+void makeDirs(const std::string& dir) {
+  std::string partial;
+  for (size_t i = 0; i <= dir.size(); ++i) {
+    if (i == dir.size() || dir[i] == '/') {
+      if (!partial.empty() && mkdir(partial.c_str(), 0755) != 0 && errno != EEXIST)
+        throw std::runtime_error("cannot create directory " + partial + ": " + std::strerror(errno));
+    }
+    if (i < dir.size()) partial += dir[i];
+  }
+}
+}  // namespace
+
+OfflinePipeline::OfflinePipeline(const PipelineConfig& config)
+    : config_(config), camera_(config.camera), frontend_(config.frontend, camera_, config.T_base_cam) {}
+
+void OfflinePipeline::addEvents(const EventVector& events) {
+  if (events.empty()) return;
+  if (t_first_ < 0) t_first_ = events.front().t_ns;
+  t_last_ = std::max(t_last_, events.back().t_ns);
+  events_ += events.size();
+  const auto t0 = Clock::now();
+  frontend_.addEvents(events);
+  for (const ArcEstimate& a : frontend_.process()) arcs_.push_back(a);
+  frontend_s_ += secondsSince(t0);
+}
+
+void OfflinePipeline::addOdometry(int64_t t_ns, double v, double w) { frontend_.addOdometry(t_ns, v, w); }
+void OfflinePipeline::addGyro(int64_t t_ns, double w) { frontend_.addGyro(t_ns, w); }
+
+void OfflinePipeline::finish() {
+  const auto t0 = Clock::now();
+  for (const ArcEstimate& a : frontend_.process()) arcs_.push_back(a);
+  frontend_s_ += secondsSince(t0);
+}
+
+Trajectory3 OfflinePipeline::frontendTrajectory() const {
+  Trajectory3 traj;
+  if (!frontend_.hasPose()) return traj;
+  for (const ArcEstimate& a : arcs_) {
+    if (traj.empty()) traj.push_back({a.t_start_ns, frontend_.T_odom_base(a.t_start_ns)});
+    traj.push_back({a.t_ref_ns, frontend_.T_odom_base(a.t_ref_ns)});
+    traj.push_back({a.t_end_ns, frontend_.T_odom_base(a.t_end_ns)});
+  }
+  // Keep strictly increasing times (t_ref may coincide with a boundary for tiny windows).
+  Trajectory3 out;
+  for (const StampedPose& p : traj)
+    if (out.empty() || p.t_ns > out.back().t_ns) out.push_back(p);
+  return out;
+}
+
+void writeArcsCsv(const std::string& path, const std::vector<ArcEstimate>& arcs) {
+  FILE* f = std::fopen(path.c_str(), "w");
+  if (!f) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
+  std::fprintf(f, "t_ref,t_start,t_end,omega,v,contrast,confidence,num_events,window_events,status,evaluations\n");
+  for (const ArcEstimate& a : arcs)
+    std::fprintf(f, "%.9f,%.9f,%.9f,%.9f,%.6f,%.9g,%.6f,%u,%zu,%s,%d\n", nsToSec(a.t_ref_ns), nsToSec(a.t_start_ns),
+                 nsToSec(a.t_end_ns), a.omega, a.v, a.contrast, a.confidence, a.num_events, a.window_events,
+                 toString(a.status), a.evaluations);
+  std::fclose(f);
+}
+
+nlohmann::json OfflinePipeline::report() const {
+  const double duration = t_first_ >= 0 ? dtSec(t_last_, t_first_) : 0.0;
+  size_t by_status[4] = {0, 0, 0, 0};
+  for (const ArcEstimate& a : arcs_) ++by_status[int(a.status)];
+  const FrontendStats& st = frontend_.stats();
+  nlohmann::json j;
+  j["duration_s"] = duration;
+  j["events"] = events_;
+  j["windows"] = arcs_.size();
+  j["processing_s"] = frontend_s_;
+  j["real_time_factor"] = duration > 0 ? frontend_s_ / duration : 0.0;
+  j["stages"]["frontend"] = {{"processing_s", frontend_s_},
+                             {"real_time_factor", duration > 0 ? frontend_s_ / duration : 0.0},
+                             {"windows", arcs_.size()},
+                             {"windows_ok", by_status[0]},
+                             {"windows_standstill", by_status[1]},
+                             {"windows_lost", by_status[2]},
+                             {"windows_low_events", by_status[3]},
+                             {"windows_dropped", st.windows_dropped},
+                             {"objective_evaluations", st.evaluations}};
+  j["dropped"] = {{"events_outside_sensor", st.events_outside},
+                  {"events_out_of_order", st.events_out_of_order},
+                  {"resets", st.resets}};
+  j["config"] = config_.path;
+  return j;
+}
+
+void OfflinePipeline::writeOutputs(const std::string& out_dir, const nlohmann::json& extra) const {
+  makeDirs(out_dir);
+  writeTum(out_dir + "/frontend.tum", frontendTrajectory());
+  writeArcsCsv(out_dir + "/arcs.csv", arcs_);
+  nlohmann::json j = report();
+  for (auto it = extra.begin(); it != extra.end(); ++it) j[it.key()] = it.value();
+  std::ofstream(out_dir + "/report.json") << j.dump(2) << "\n";
+}
+
+}  // namespace vwe_vo

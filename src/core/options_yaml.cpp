@@ -1,0 +1,131 @@
+#include "vwe_vo/core/options_yaml.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cstdlib>
+#include <set>
+#include <stdexcept>
+
+#include "vwe_vo/core/config.h"
+
+#ifndef VWE_VO_CONFIG_DIR
+#define VWE_VO_CONFIG_DIR ""
+#endif
+
+namespace vwe_vo {
+namespace {
+
+/// Reads keys of one YAML map into typed fields and remembers which keys were used.
+class Section {
+ public:
+  Section(const YAML::Node& parent, const std::string& name) : name_(name) {
+    if (parent && parent[name]) node_ = parent[name];
+    if (node_ && !node_.IsMap()) throw std::invalid_argument("section '" + name + "' must be a map");
+  }
+  template <typename T>
+  void get(const char* key, T* value) {
+    used_.insert(key);
+    if (!node_ || !node_[key]) return;
+    try {
+      *value = node_[key].as<T>();
+    } catch (const YAML::Exception& e) {
+      throw std::invalid_argument(name_ + "." + key + ": cannot read value (" + e.what() + ")");
+    }
+  }
+  void nested(const char* key) { used_.insert(key); }
+  void reportUnknown(std::vector<std::string>* warnings) const {
+    if (!node_ || !warnings) return;
+    for (const auto& kv : node_) {
+      const std::string k = kv.first.as<std::string>();
+      if (!used_.count(k)) warnings->push_back("unknown key '" + name_ + "." + k + "' ignored");
+    }
+  }
+  const YAML::Node& node() const { return node_; }
+
+ private:
+  std::string name_;
+  YAML::Node node_;
+  std::set<std::string> used_;
+};
+
+}  // namespace
+
+void loadOptions(const YAML::Node& node, const std::string& section, VolumeOptions* o,
+                 std::vector<std::string>* warnings) {
+  Section s(node, section);
+  s.get("grid_scale", &o->grid_scale);
+  s.get("margin_px", &o->margin_px);
+  s.get("num_planes", &o->num_planes);
+  s.get("z_min_m", &o->z_min_m);
+  s.get("z_max_m", &o->z_max_m);
+  s.get("num_threads", &o->num_threads);
+  s.reportUnknown(warnings);
+  o->validate();
+}
+
+void loadOptions(const YAML::Node& node, const std::string& section, FrontendOptions* o,
+                 std::vector<std::string>* warnings) {
+  Section s(node, section);
+  s.nested("volume");
+  if (s.node()) loadOptions(s.node(), "volume", &o->volume, warnings);
+  s.get("window_by_count", &o->window_by_count);
+  s.get("window_duration_s", &o->window_duration_s);
+  s.get("window_events", &o->window_events);
+  s.get("max_events_per_volume", &o->max_events_per_volume);
+  s.get("nominal_speed_mps", &o->nominal_speed_mps);
+  s.get("omega_max_rad_s", &o->omega_max_rad_s);
+  s.get("scan_half_range_rad_s", &o->scan_half_range_rad_s);
+  s.get("scan_step_rad_s", &o->scan_step_rad_s);
+  s.get("refine_tolerance_rad_s", &o->refine_tolerance_rad_s);
+  s.get("standstill_event_rate_hz", &o->standstill_event_rate_hz);
+  s.get("standstill_speed_mps", &o->standstill_speed_mps);
+  s.get("min_events", &o->min_events);
+  s.get("min_confidence", &o->min_confidence);
+  s.get("use_gyro_prior", &o->use_gyro_prior);
+  s.get("gyro_prior_half_range_rad_s", &o->gyro_prior_half_range_rad_s);
+  s.get("max_backwards_jump_s", &o->max_backwards_jump_s);
+  s.get("seed", &o->seed);
+  s.reportUnknown(warnings);
+  o->validate();
+}
+
+std::string defaultConfigDir() {
+  if (const char* env = std::getenv("VWE_VO_CONFIG_DIR")) return env;
+  return VWE_VO_CONFIG_DIR;
+}
+
+PipelineConfig loadPipelineConfig(const std::string& path, const std::string& default_calibration_path) {
+  PipelineConfig cfg;
+  cfg.path = path;
+  cfg.T_base_cam = defaultTBaseCam();
+  std::string calib = default_calibration_path.empty() ? defaultConfigDir() + "/davis346.yaml" : default_calibration_path;
+  if (!path.empty()) {
+    YAML::Node root;
+    try {
+      root = YAML::LoadFile(path);
+    } catch (const YAML::Exception& e) {
+      throw std::runtime_error(path + ": cannot read configuration: " + e.what());
+    }
+    static const std::set<std::string> known = {"camera_calibration", "T_base_cam", "frontend", "backend", "mapping", "simulator"};
+    for (const auto& kv : root)
+      if (!known.count(kv.first.as<std::string>()))
+        cfg.warnings.push_back(path + ": unknown top-level key '" + kv.first.as<std::string>() + "' ignored");
+    if (root["camera_calibration"]) {
+      calib = root["camera_calibration"].as<std::string>();
+      if (!calib.empty() && calib[0] != '/') {
+        const size_t slash = path.find_last_of('/');
+        calib = (slash == std::string::npos ? std::string(".") : path.substr(0, slash)) + "/" + calib;
+      }
+    }
+    cfg.T_base_cam = loadTBaseCam(path);
+    try {
+      loadOptions(root, "frontend", &cfg.frontend, &cfg.warnings);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(path + ": " + e.what());
+    }
+  }
+  cfg.camera = loadCameraCalibrationYaml(calib);
+  return cfg;
+}
+
+}  // namespace vwe_vo

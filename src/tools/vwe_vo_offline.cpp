@@ -1,0 +1,162 @@
+// vwe_vo_offline: runs the pipeline synchronously at full speed over a rosbag or an Event
+// Camera Dataset folder and writes trajectories, arcs and a JSON report.
+//   vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out OUTDIR
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sys/stat.h>
+
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <map>
+#include <string>
+
+#include <nav_msgs/Odometry.h>
+#include <sensor_msgs/Imu.h>
+
+#include "vwe_vo/EventArray.h"
+#include "vwe_vo/core/config.h"
+#include "vwe_vo/core/offline_pipeline.h"
+#include "vwe_vo/ros/conversions.h"
+
+namespace {
+
+const char* kUsage =
+    "usage: vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out OUTDIR\n"
+    "                      [--use-odom] [--events-topic T] [--odom-topic T] [--imu-topic T] [--quiet]\n"
+    "  Runs the front-end over recorded events at full speed. Writes OUTDIR/frontend.tum,\n"
+    "  OUTDIR/arcs.csv and OUTDIR/report.json. An ECD folder holds events.txt or events.txt.gz,\n"
+    "  calib.txt and optionally extrinsics.txt (T_base_cam, overrides the config).\n";
+
+bool fileExists(const std::string& p) {
+  struct stat st;
+  return stat(p.c_str(), &st) == 0;
+}
+
+class Progress {
+ public:
+  explicit Progress(bool quiet) : quiet_(quiet), last_(std::chrono::steady_clock::now()) {}
+  void update(const vwe_vo::OfflinePipeline& p, double total_s) {
+    if (quiet_) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (std::chrono::duration<double>(now - last_).count() < 0.5) return;
+    last_ = now;
+    const double t = p.firstTime() >= 0 ? vwe_vo::dtSec(p.lastTime(), p.firstTime()) : 0.0;
+    std::fprintf(stderr, "\r[vwe_vo_offline] %6.1f / %.1f s of data, %zu windows, %.1f M events   ", t, total_s,
+                 p.arcs().size(), p.events() * 1e-6);
+  }
+  void done() {
+    if (!quiet_) std::fprintf(stderr, "\n");
+  }
+
+ private:
+  bool quiet_;
+  std::chrono::steady_clock::time_point last_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::map<std::string, std::string> args;
+  bool use_odom = false, quiet = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--help" || a == "-h") {
+      std::cout << kUsage;
+      return 0;
+    } else if (a == "--use-odom") {
+      use_odom = true;
+    } else if (a == "--quiet") {
+      quiet = true;
+    } else if ((a == "--bag" || a == "--ecd" || a == "--config" || a == "--nominal-speed" || a == "--out" ||
+                a == "--events-topic" || a == "--odom-topic" || a == "--imu-topic") &&
+               i + 1 < argc) {
+      args[a] = argv[++i];
+    } else {
+      std::cerr << "vwe_vo_offline: unknown or incomplete option '" << a << "'\n" << kUsage;
+      return 2;
+    }
+  }
+  if (args.count("--bag") == args.count("--ecd") || !args.count("--out")) {
+    std::cerr << "vwe_vo_offline: give exactly one of --bag or --ecd, and --out\n" << kUsage;
+    return 2;
+  }
+  try {
+    vwe_vo::PipelineConfig cfg = vwe_vo::loadPipelineConfig(
+        args.count("--config") ? args["--config"] : vwe_vo::defaultConfigDir() + "/vwe_vo.yaml");
+    for (const auto& w : cfg.warnings) std::cerr << "vwe_vo_offline: warning: " << w << "\n";
+    if (args.count("--nominal-speed")) {
+      cfg.frontend.nominal_speed_mps = std::stod(args["--nominal-speed"]);
+      cfg.frontend.validate();
+    }
+    const auto wall0 = std::chrono::steady_clock::now();
+    Progress progress(quiet);
+    nlohmann::json input;
+    vwe_vo::EventVector all;
+    if (args.count("--ecd")) {
+      const std::string dir = args["--ecd"];
+      const vwe_vo::EcdCalibration c = vwe_vo::readEcdCalibration(dir + "/calib.txt");
+      cfg.camera.fx = c.fx, cfg.camera.fy = c.fy, cfg.camera.cx = c.cx, cfg.camera.cy = c.cy;
+      cfg.camera.distortion = {c.k1, c.k2, c.p1, c.p2, c.k3};
+      if (fileExists(dir + "/extrinsics.txt")) cfg.T_base_cam = vwe_vo::readPoseLine(dir + "/extrinsics.txt");
+      const std::string events_path = fileExists(dir + "/events.txt") ? dir + "/events.txt" : dir + "/events.txt.gz";
+      if (!quiet) std::fprintf(stderr, "[vwe_vo_offline] reading %s\n", events_path.c_str());
+      all = vwe_vo::readEcdEvents(events_path, cfg.camera.width, cfg.camera.height);
+      input = {{"ecd", dir}};
+    }
+    vwe_vo::OfflinePipeline pipeline(cfg);
+    if (args.count("--ecd")) {
+      const double total = all.empty() ? 0.0 : vwe_vo::dtSec(all.back().t_ns, all.front().t_ns);
+      const size_t chunk = 50000;
+      for (size_t i = 0; i < all.size(); i += chunk) {
+        pipeline.addEvents(vwe_vo::EventVector(all.begin() + i, all.begin() + std::min(all.size(), i + chunk)));
+        progress.update(pipeline, total);
+      }
+    } else {
+      const std::string events_topic = args.count("--events-topic") ? args["--events-topic"] : "/dvs/events";
+      const std::string odom_topic = args.count("--odom-topic") ? args["--odom-topic"] : "/odom";
+      const std::string imu_topic = args.count("--imu-topic") ? args["--imu-topic"] : "/dvs/imu";
+      rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
+      rosbag::View view(bag, rosbag::TopicQuery({events_topic, odom_topic, imu_topic}));
+      const double total = (view.getEndTime() - view.getBeginTime()).toSec();
+      size_t packets = 0;
+      vwe_vo::EventVector events;
+      vwe_vo::EventConversionStats conv;
+      for (const rosbag::MessageInstance& m : view) {
+        if (m.getTopic() == events_topic) {
+          const auto msg = m.instantiate<vwe_vo::EventArray>();
+          if (!msg) continue;
+          if (int(msg->width) != cfg.camera.width || int(msg->height) != cfg.camera.height)
+            throw std::runtime_error("EventArray is " + std::to_string(msg->width) + "x" + std::to_string(msg->height) +
+                                     " but the calibration is " + std::to_string(cfg.camera.width) + "x" +
+                                     std::to_string(cfg.camera.height));
+          vwe_vo::eventsFromMsg(*msg, &events, &conv);
+          pipeline.addEvents(events);
+          ++packets;
+          progress.update(pipeline, total);
+        } else if (use_odom && m.getTopic() == odom_topic) {
+          if (const auto o = m.instantiate<nav_msgs::Odometry>())
+            pipeline.addOdometry(vwe_vo::toNs(o->header.stamp), o->twist.twist.linear.x, o->twist.twist.angular.z);
+        } else if (m.getTopic() == imu_topic) {
+          if (const auto imu = m.instantiate<sensor_msgs::Imu>()) {
+            const vwe_vo::Vec3 w_C(imu->angular_velocity.x, imu->angular_velocity.y, imu->angular_velocity.z);
+            pipeline.addGyro(vwe_vo::toNs(imu->header.stamp), (cfg.T_base_cam.linear() * w_C).z());
+          }
+        }
+      }
+      input = {{"bag", args["--bag"]}, {"event_packets", packets}, {"events_dropped_in_conversion", conv.dropped}};
+    }
+    pipeline.finish();
+    progress.done();
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+    pipeline.writeOutputs(args["--out"], {{"input", input}, {"wall_s", wall}});
+    const nlohmann::json r = pipeline.report();
+    std::fprintf(stderr, "[vwe_vo_offline] %zu events, %zu windows over %.1f s in %.2f s (real-time factor %.3f) -> %s\n",
+                 pipeline.events(), pipeline.arcs().size(), r["duration_s"].get<double>(), pipeline.processingSeconds(),
+                 r["real_time_factor"].get<double>(), args["--out"].c_str());
+  } catch (const std::exception& e) {
+    std::cerr << "\nvwe_vo_offline: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}
