@@ -52,8 +52,12 @@ double medianOf(const std::vector<double>& v) {
 class Coverage {
  public:
   Coverage(const Trajectory3& gt, const Trajectory3& est, const EvaluationOptions& options) {
-    if (gt.size() < 2) throw std::runtime_error("ground truth has " + std::to_string(gt.size()) + " poses, need at least 2");
-    if (est.size() < 2) throw std::runtime_error("estimate has " + std::to_string(est.size()) + " poses, need at least 2");
+    if (gt.size() < 2)
+      throw std::runtime_error("ground truth has " + std::to_string(gt.size()) +
+                               " poses, need at least 2");
+    if (est.size() < 2)
+      throw std::runtime_error("estimate has " + std::to_string(est.size()) +
+                               " poses, need at least 2");
     t0_ns_ = std::max(gt.front().t_ns, est.front().t_ns);
     t1_ns_ = std::min(gt.back().t_ns, est.back().t_ns);
     if (t1_ns_ <= t0_ns_)
@@ -62,7 +66,8 @@ class Coverage {
                                rangeText(est.front().t_ns, est.back().t_ns));
     const int64_t max_gap_ns = secToNs(options.max_gap_s);
     for (size_t i = 1; i < est.size(); ++i)
-      if (est[i].t_ns - est[i - 1].t_ns > max_gap_ns) gaps_.emplace_back(est[i - 1].t_ns, est[i].t_ns);
+      if (est[i].t_ns - est[i - 1].t_ns > max_gap_ns)
+        gaps_.emplace_back(est[i - 1].t_ns, est[i].t_ns);
   }
 
   int64_t start() const { return t0_ns_; }
@@ -78,8 +83,9 @@ class Coverage {
 
   void requireAtLeast(double delta_s) const {
     if (durationSec() < delta_s)
-      throw std::runtime_error("trajectories overlap only over " + rangeText(t0_ns_, t1_ns_) + " (" +
-                               fmt("%.3f", durationSec()) + " s), shorter than delta " + fmt("%g", delta_s) + " s");
+      throw std::runtime_error("trajectories overlap only over " + rangeText(t0_ns_, t1_ns_) +
+                               " (" + fmt("%.3f", durationSec()) + " s), shorter than delta " +
+                               fmt("%g", delta_s) + " s");
   }
 
  private:
@@ -90,7 +96,8 @@ class Coverage {
 Pose3 poseAt(const Trajectory3& traj, int64_t t_ns, const char* which) {
   Pose3 T;
   if (!interpolateTrajectory(traj, t_ns, &T))
-    throw std::logic_error(std::string("evaluation: ") + which + " has no pose at " + fmt("%.9f", nsToSec(t_ns)));
+    throw std::logic_error(std::string("evaluation: ") + which + " has no pose at " +
+                           fmt("%.9f", nsToSec(t_ns)));
   return T;
 }
 
@@ -102,8 +109,8 @@ std::vector<int64_t> sampleTimes(int64_t t0_ns, int64_t last_ns, double step_s) 
   return times;
 }
 
-RpeResult rpeOver(const Trajectory3& gt, const Trajectory3& est, double delta_s, const EvaluationOptions& options,
-                  const Coverage& cov) {
+RpeResult rpeOver(const Trajectory3& gt, const Trajectory3& est, double delta_s,
+                  const EvaluationOptions& options, const Coverage& cov) {
   cov.requireAtLeast(delta_s);
   RpeResult r;
   r.delta_s = delta_s;
@@ -115,11 +122,14 @@ RpeResult rpeOver(const Trajectory3& gt, const Trajectory3& est, double delta_s,
       continue;
     }
     // Relative motion in the first pose's frame: T_rel = T(t)^-1 T(t + Delta).
-    const Pose3 gt_rel = poseAt(gt, t, "ground truth").inverse() * poseAt(gt, t + delta_ns, "ground truth");
-    const Pose3 est_rel = poseAt(est, t, "estimate").inverse() * poseAt(est, t + delta_ns, "estimate");
+    const Pose3 gt_rel =
+        poseAt(gt, t, "ground truth").inverse() * poseAt(gt, t + delta_ns, "ground truth");
+    const Pose3 est_rel =
+        poseAt(est, t, "estimate").inverse() * poseAt(est, t + delta_ns, "estimate");
     RpePair p;
     p.t_ns = t;
-    p.rot_err_deg_s = rotationAngle(gt_rel.linear().transpose() * est_rel.linear()) * kDegPerRad / delta_s;
+    p.rot_err_deg_s =
+        rotationAngle(gt_rel.linear().transpose() * est_rel.linear()) * kDegPerRad / delta_s;
     if (gt_rel.translation().norm() < options.standstill_threshold_m) {
       ++r.standstill_pairs;
       p.trans_dir_err_deg_s = kNaN;
@@ -128,7 +138,8 @@ RpeResult rpeOver(const Trajectory3& gt, const Trajectory3& est, double delta_s,
       ++r.est_still_pairs;
       p.trans_dir_err_deg_s = 90.0 / delta_s;
     } else {
-      p.trans_dir_err_deg_s = angleBetween(gt_rel.translation(), est_rel.translation()) * kDegPerRad / delta_s;
+      p.trans_dir_err_deg_s =
+          angleBetween(gt_rel.translation(), est_rel.translation()) * kDegPerRad / delta_s;
     }
     rot.push_back(p.rot_err_deg_s);
     trans.push_back(p.trans_dir_err_deg_s);
@@ -136,9 +147,10 @@ RpeResult rpeOver(const Trajectory3& gt, const Trajectory3& est, double delta_s,
   }
   r.pairs = static_cast<int>(r.series.size());
   if (r.pairs == 0)
-    throw std::runtime_error("no RPE pair of " + fmt("%g", delta_s) + " s is tracked in the overlap " +
-                             rangeText(cov.start(), cov.end()) + " (" + std::to_string(r.untracked_pairs) +
-                             " pairs span estimate gaps longer than " + fmt("%g", options.max_gap_s) + " s)");
+    throw std::runtime_error(
+        "no RPE pair of " + fmt("%g", delta_s) + " s is tracked in the overlap " +
+        rangeText(cov.start(), cov.end()) + " (" + std::to_string(r.untracked_pairs) +
+        " pairs span estimate gaps longer than " + fmt("%g", options.max_gap_s) + " s)");
   r.rot_rmse_deg_s = rmseOf(rot);
   r.rot_median_deg_s = medianOf(rot);
   r.trans_dir_rmse_deg_s = rmseOf(trans);
@@ -149,7 +161,8 @@ RpeResult rpeOver(const Trajectory3& gt, const Trajectory3& est, double delta_s,
 /// Yaw of the body-frame rotation from t to t + h, over h: a finite-difference yaw rate [rad/s].
 /// atan2 in yawOf wraps it, so it is right as long as |yaw rate| * h < pi.
 double yawRate(const Trajectory3& traj, int64_t t_ns, int64_t h_ns, const char* which) {
-  const Mat3 R_rel = poseAt(traj, t_ns, which).linear().transpose() * poseAt(traj, t_ns + h_ns, which).linear();
+  const Mat3 R_rel =
+      poseAt(traj, t_ns, which).linear().transpose() * poseAt(traj, t_ns + h_ns, which).linear();
   return yawOf(R_rel) / nsToSec(h_ns);
 }
 
@@ -172,7 +185,9 @@ double trackedFraction(const Trajectory3& gt, const Trajectory3& est, double max
   return static_cast<double>(covered_ns) / static_cast<double>(g1 - g0);
 }
 
-nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+nlohmann::json num(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
 
 nlohmann::json rpeJson(const RpeResult& r) {
   nlohmann::json j = {{"delta_s", r.delta_s},
@@ -188,15 +203,17 @@ nlohmann::json rpeJson(const RpeResult& r) {
   return j;
 }
 
-std::string rpeKey(double delta_s) { return "rpe_" + fmt("%g", delta_s); }
+std::string rpeKey(double delta_s) {
+  return "rpe_" + fmt("%g", delta_s);
+}
 
 }  // namespace
 
 void EvaluationOptions::validate() const {
   auto positive = [](double v, const char* name) {
     if (!std::isfinite(v) || v <= 0)
-      throw std::invalid_argument(std::string("EvaluationOptions.") + name + " must be a positive number, got " +
-                                  fmt("%g", v));
+      throw std::invalid_argument(std::string("EvaluationOptions.") + name +
+                                  " must be a positive number, got " + fmt("%g", v));
   };
   positive(delta_s, "delta_s");
   positive(pair_step_s, "pair_step_s");
@@ -213,7 +230,9 @@ Sim3 alignUmeyama(const std::vector<Vec3>& src, const std::vector<Vec3>& dst, bo
   if (src.size() != dst.size())
     throw std::invalid_argument("alignUmeyama: " + std::to_string(src.size()) + " source and " +
                                 std::to_string(dst.size()) + " target points");
-  if (src.size() < 3) throw std::invalid_argument("alignUmeyama: need at least 3 points, got " + std::to_string(src.size()));
+  if (src.size() < 3)
+    throw std::invalid_argument("alignUmeyama: need at least 3 points, got " +
+                                std::to_string(src.size()));
   const double n = static_cast<double>(src.size());
   Vec3 mu_src = Vec3::Zero(), mu_dst = Vec3::Zero();
   for (size_t i = 0; i < src.size(); ++i) mu_src += src[i], mu_dst += dst[i];
@@ -228,7 +247,8 @@ Sim3 alignUmeyama(const std::vector<Vec3>& src, const std::vector<Vec3>& dst, bo
   }
   var_src /= n;
   cov /= n;
-  if (!(var_src > 0)) throw std::runtime_error("alignUmeyama: source points have no spread (all equal)");
+  if (!(var_src > 0))
+    throw std::runtime_error("alignUmeyama: source points have no spread (all equal)");
 
   const Eigen::JacobiSVD<Mat3> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
   // Reflection fix: if U V^T would be a reflection, flip the axis of the smallest singular value.
@@ -241,13 +261,16 @@ Sim3 alignUmeyama(const std::vector<Vec3>& src, const std::vector<Vec3>& dst, bo
   return out;
 }
 
-RpeResult computeRpe(const Trajectory3& gt, const Trajectory3& est, double delta_s, const EvaluationOptions& options) {
+RpeResult computeRpe(const Trajectory3& gt, const Trajectory3& est, double delta_s,
+                     const EvaluationOptions& options) {
   options.validate();
-  if (!std::isfinite(delta_s) || delta_s <= 0) throw std::invalid_argument("computeRpe: delta_s must be positive");
+  if (!std::isfinite(delta_s) || delta_s <= 0)
+    throw std::invalid_argument("computeRpe: delta_s must be positive");
   return rpeOver(gt, est, delta_s, options, Coverage(gt, est, options));
 }
 
-EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est, const EvaluationOptions& options) {
+EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est,
+                          const EvaluationOptions& options) {
   options.validate();
   const Coverage cov(gt, est, options);
   EvaluationResult res;
@@ -263,7 +286,8 @@ EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est, const E
     } catch (const std::runtime_error& e) {
       RpeResult r;
       r.delta_s = d;
-      r.rot_rmse_deg_s = r.rot_median_deg_s = r.trans_dir_rmse_deg_s = r.trans_dir_median_deg_s = kNaN;
+      r.rot_rmse_deg_s = r.rot_median_deg_s = r.trans_dir_rmse_deg_s = r.trans_dir_median_deg_s =
+          kNaN;
       r.error = e.what();
       res.rpe_extra.push_back(r);
     }
@@ -274,7 +298,8 @@ EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est, const E
   for (const RpePair& p : res.rpe.series) {
     double err = kNaN;
     if (p.t_ns + h_ns <= cov.end() && !cov.spansGap(p.t_ns, p.t_ns + h_ns)) {
-      const double d = yawRate(est, p.t_ns, h_ns, "estimate") - yawRate(gt, p.t_ns, h_ns, "ground truth");
+      const double d =
+          yawRate(est, p.t_ns, h_ns, "estimate") - yawRate(gt, p.t_ns, h_ns, "ground truth");
       err = d * kDegPerRad;
       ++res.yaw_rate_samples;
     }
@@ -293,7 +318,8 @@ EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est, const E
   }
   res.ate_samples = static_cast<int>(times.size());
   if (times.size() < 3)
-    throw std::runtime_error("only " + std::to_string(times.size()) + " tracked samples in the overlap " +
+    throw std::runtime_error("only " + std::to_string(times.size()) +
+                             " tracked samples in the overlap " +
                              rangeText(cov.start(), cov.end()) + ", need 3 for the alignment");
   res.alignment = alignUmeyama(p_est, p_gt, true);
   res.ate_scale = res.alignment.scale;
@@ -314,7 +340,8 @@ EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est, const E
     if (sp.t_ns > cov.start() && sp.t_ns < cov.end()) path.push_back(sp.T.translation());
   path.push_back(poseAt(gt, cov.end(), "ground truth").translation());
   res.path_length_m = pathLength(path);
-  res.ate_percent_of_path = res.path_length_m > 0 ? 100.0 * res.ate_rmse_m / res.path_length_m : kNaN;
+  res.ate_percent_of_path =
+      res.path_length_m > 0 ? 100.0 * res.ate_rmse_m / res.path_length_m : kNaN;
   res.tracked_fraction = trackedFraction(gt, est, options.max_gap_s);
 
   // Scale drift: segments of segment_m of ground-truth distance; a gap ends a segment unfinished.
@@ -366,16 +393,20 @@ nlohmann::json toJson(const EvaluationResult& r, bool with_series) {
                       {"max_abs_deviation", num(r.scale_drift.max_abs_deviation)},
                       {"ratios", ratios}};
   if (with_series) {
-    nlohmann::json t = nlohmann::json::array(), rot = nlohmann::json::array(), trans = nlohmann::json::array(),
-                   yaw = nlohmann::json::array();
+    nlohmann::json t = nlohmann::json::array(), rot = nlohmann::json::array(),
+                   trans = nlohmann::json::array(), yaw = nlohmann::json::array();
     for (size_t i = 0; i < r.rpe.series.size(); ++i) {
       const RpePair& p = r.rpe.series[i];
       t.push_back(dtSec(p.t_ns, r.gt_start_ns));
       rot.push_back(num(p.rot_err_deg_s));
       trans.push_back(num(p.trans_dir_err_deg_s));
-      yaw.push_back(i < r.yaw_rate_err_deg_s.size() ? num(r.yaw_rate_err_deg_s[i]) : nlohmann::json(nullptr));
+      yaw.push_back(i < r.yaw_rate_err_deg_s.size() ? num(r.yaw_rate_err_deg_s[i])
+                                                    : nlohmann::json(nullptr));
     }
-    j["series"] = {{"t_s", t}, {"rot_err_deg_s", rot}, {"trans_dir_err_deg_s", trans}, {"yaw_rate_err_deg_s", yaw}};
+    j["series"] = {{"t_s", t},
+                   {"rot_err_deg_s", rot},
+                   {"trans_dir_err_deg_s", trans},
+                   {"yaw_rate_err_deg_s", yaw}};
   }
   return j;
 }
@@ -419,15 +450,17 @@ std::string formatTable(const EvaluationResult& r) {
   for (const RpeResult* e : rpes) cell(pair2(e->rot_rmse_deg_s, e->rot_median_deg_s) + " deg/s");
   os << "\n";
   row("trans. dir. RMSE / median");
-  for (const RpeResult* e : rpes) cell(pair2(e->trans_dir_rmse_deg_s, e->trans_dir_median_deg_s) + " deg/s");
+  for (const RpeResult* e : rpes)
+    cell(pair2(e->trans_dir_rmse_deg_s, e->trans_dir_median_deg_s) + " deg/s");
   os << "\n";
   for (const RpeResult* e : rpes)
-    if (!e->error.empty()) os << "  (Delta " << fmt("%g", e->delta_s) << " s: " << e->error << ")\n";
+    if (!e->error.empty())
+      os << "  (Delta " << fmt("%g", e->delta_s) << " s: " << e->error << ")\n";
   row("yaw-rate RMSE");
   os << fmt("%.3f", r.yaw_rate_rmse_deg_s) << " deg/s (" << r.yaw_rate_samples << " samples)\n";
   row("ATE after Sim(3)");
-  os << fmt("%.4f", r.ate_rmse_m) << " m = " << fmt("%.3f", r.ate_percent_of_path) << " % of path, scale "
-     << fmt("%.5f", r.ate_scale) << "\n";
+  os << fmt("%.4f", r.ate_rmse_m) << " m = " << fmt("%.3f", r.ate_percent_of_path)
+     << " % of path, scale " << fmt("%.5f", r.ate_scale) << "\n";
   row("ATE after SE(3)");
   os << fmt("%.4f", r.ate_se3_rmse_m) << " m\n";
   row("ground-truth path length");
@@ -438,9 +471,10 @@ std::string formatTable(const EvaluationResult& r) {
   if (r.scale_drift.ratios.empty())
     os << "no complete segment\n";
   else
-    os << "ratio " << fmt("%.4f", r.scale_drift.min_ratio) << " .. " << fmt("%.4f", r.scale_drift.max_ratio)
-       << ", max |ratio - 1| " << fmt("%.4f", r.scale_drift.max_abs_deviation) << " ("
-       << r.scale_drift.ratios.size() << " segments)\n";
+    os << "ratio " << fmt("%.4f", r.scale_drift.min_ratio) << " .. "
+       << fmt("%.4f", r.scale_drift.max_ratio) << ", max |ratio - 1| "
+       << fmt("%.4f", r.scale_drift.max_abs_deviation) << " (" << r.scale_drift.ratios.size()
+       << " segments)\n";
   return os.str();
 }
 

@@ -12,11 +12,13 @@
 namespace {
 
 const char* kUsage =
-    "usage: vwe_vo_eval --gt GT.tum --est EST.tum [--delta 1.0] [--json OUT.json] [--series OUT.csv]\n"
+    "usage: vwe_vo_eval --gt GT.tum --est EST.tum [--delta 1.0] [--json OUT.json] [--series "
+    "OUT.csv]\n"
     "                   [--segment 10]\n"
     "  --gt FILE       ground-truth TUM trajectory (t px py pz qx qy qz qw)\n"
     "  --est FILE      estimated TUM trajectory\n"
-    "  --delta S       relative pose error interval in seconds (default 1.0; 0.5 s is also reported)\n"
+    "  --delta S       relative pose error interval in seconds (default 1.0; 0.5 s is also "
+    "reported)\n"
     "  --json FILE     write the metrics as JSON\n"
     "  --series FILE   write the per-pair errors as CSV (for scripts/plot_trajectory.py)\n"
     "  --segment M     ground-truth distance per scale-drift segment in metres (default 10)\n"
@@ -47,17 +49,23 @@ int main(int argc, char** argv) {
         std::cout << kUsage;
         return 0;
       }
-      if (arg != "--gt" && arg != "--est" && arg != "--delta" && arg != "--json" && arg != "--series" &&
-          arg != "--segment")
+      if (arg != "--gt" && arg != "--est" && arg != "--delta" && arg != "--json" &&
+          arg != "--series" && arg != "--segment")
         throw std::invalid_argument("unknown option '" + arg + "'");
       if (i + 1 >= argc) throw std::invalid_argument(arg + " needs a value");
       const std::string value = argv[++i];
-      if (arg == "--gt") gt_path = value;
-      else if (arg == "--est") est_path = value;
-      else if (arg == "--json") json_path = value;
-      else if (arg == "--series") series_path = value;
-      else if (arg == "--delta") options.delta_s = parsePositive(arg, value);
-      else options.segment_m = parsePositive(arg, value);
+      if (arg == "--gt")
+        gt_path = value;
+      else if (arg == "--est")
+        est_path = value;
+      else if (arg == "--json")
+        json_path = value;
+      else if (arg == "--series")
+        series_path = value;
+      else if (arg == "--delta")
+        options.delta_s = parsePositive(arg, value);
+      else
+        options.segment_m = parsePositive(arg, value);
     }
     if (gt_path.empty()) throw std::invalid_argument("--gt is required");
     if (est_path.empty()) throw std::invalid_argument("--est is required");
@@ -71,7 +79,8 @@ int main(int argc, char** argv) {
     const vwe_vo::Trajectory3 gt = vwe_vo::readTum(gt_path);
     const vwe_vo::Trajectory3 est = vwe_vo::readTum(est_path);
     const vwe_vo::EvaluationResult result = vwe_vo::evaluate(gt, est, options);
-    std::cout << "vwe_vo_eval: " << est_path << " against " << gt_path << "\n" << vwe_vo::formatTable(result);
+    std::cout << "vwe_vo_eval: " << est_path << " against " << gt_path << "\n"
+              << vwe_vo::formatTable(result);
     if (!json_path.empty()) {
       std::ofstream out(json_path);
       out << vwe_vo::toJson(result).dump(2) << "\n";

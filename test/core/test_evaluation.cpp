@@ -46,7 +46,9 @@ Trajectory3 similarCopy(const Trajectory3& in, double s, const Mat3& R, const Ve
   return out;
 }
 
-Mat3 someRotation() { return Eigen::AngleAxisd(0.7, Vec3(1, -2, 0.5).normalized()).toRotationMatrix(); }
+Mat3 someRotation() {
+  return Eigen::AngleAxisd(0.7, Vec3(1, -2, 0.5).normalized()).toRotationMatrix();
+}
 
 }  // namespace
 
@@ -133,7 +135,9 @@ TEST(Evaluation, StandstillPairsAreCountedAndLeftOut) {
   // sideways by < 1 mm; the estimate creeps forward 1 mm/s instead. Pairs inside the standstill
   // would have a 90 deg direction error if they were counted.
   auto x_gt = [](double t) { return t < 3 ? t : (t < 6 ? 3.0 : t - 3.0); };
-  auto y_gt = [](double t) { return t > 3 && t < 6 ? 5e-4 * std::sin(2 * kPi * (t - 3) / 1.5) : 0.0; };
+  auto y_gt = [](double t) {
+    return t > 3 && t < 6 ? 5e-4 * std::sin(2 * kPi * (t - 3) / 1.5) : 0.0;
+  };
   auto creep = [](double t) { return t < 3 ? 0.0 : 1e-3 * (std::min(t, 6.0) - 3.0); };
   Trajectory3 gt, est;
   for (int i = 0; i <= 900; ++i) {
@@ -246,12 +250,13 @@ TEST(Evaluation, JsonHasTheDocumentedKeys) {
   const Trajectory3 gt = curvedDrive(12.0);
   const EvaluationResult r = evaluate(gt, curvedDrive(12.0, 0.01), EvaluationOptions());
   const nlohmann::json j = toJson(r);
-  for (const char* k : {"delta_s", "pairs", "standstill_pairs", "rot_rmse_deg_s", "rot_median_deg_s",
-                        "trans_dir_rmse_deg_s", "trans_dir_median_deg_s"}) {
+  for (const char* k : {"delta_s", "pairs", "standstill_pairs", "rot_rmse_deg_s",
+                        "rot_median_deg_s", "trans_dir_rmse_deg_s", "trans_dir_median_deg_s"}) {
     EXPECT_TRUE(j["rpe"].contains(k)) << k;
     EXPECT_TRUE(j["rpe_0.5"].contains(k)) << k;
   }
-  for (const char* k : {"rmse_m", "percent_of_path", "scale"}) EXPECT_TRUE(j["ate"].contains(k)) << k;
+  for (const char* k : {"rmse_m", "percent_of_path", "scale"})
+    EXPECT_TRUE(j["ate"].contains(k)) << k;
   for (const char* k : {"yaw_rate_rmse_deg_s", "path_length_m", "tracked_fraction", "scale_drift"})
     EXPECT_TRUE(j.contains(k)) << k;
   EXPECT_EQ(j["rpe"]["delta_s"].get<double>(), 1.0);

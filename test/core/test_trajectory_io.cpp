@@ -11,7 +11,9 @@ using namespace vwe_vo;
 
 namespace {
 
-std::string tempPath(const std::string& name) { return ::testing::TempDir() + "vwe_vo_test_io_" + name; }
+std::string tempPath(const std::string& name) {
+  return ::testing::TempDir() + "vwe_vo_test_io_" + name;
+}
 
 std::string writeText(const std::string& name, const std::string& text) {
   const std::string path = tempPath(name);
@@ -42,7 +44,8 @@ TEST(TrajectoryIo, TumWriteReadRoundTrip) {
   Trajectory3 traj;
   for (int i = 0; i < 200; ++i) {
     const Quat q = Quat(u(rng), u(rng), u(rng), u(rng)).normalized();
-    traj.push_back({secToNs(100.0 + 0.013 * i) + i, makePose(q, Vec3(50 * u(rng), 50 * u(rng), u(rng)))});
+    traj.push_back(
+        {secToNs(100.0 + 0.013 * i) + i, makePose(q, Vec3(50 * u(rng), 50 * u(rng), u(rng)))});
   }
   const std::string path = tempPath("roundtrip.tum");
   writeTum(path, traj);
@@ -76,8 +79,9 @@ TEST(TrajectoryIo, EcdRoundTrips) {
     EXPECT_EQ(back[i].polarity, events[i].polarity);
   }
 
-  const EcdCalibration calib{199.092366542, 198.82882047, 132.192071378, 110.712660011,
-                             -0.368436311798, 0.150947243557, -0.000296130534385, -0.000759431726241, 0.0};
+  const EcdCalibration calib{199.092366542,      198.82882047,       132.192071378,
+                             110.712660011,      -0.368436311798,    0.150947243557,
+                             -0.000296130534385, -0.000759431726241, 0.0};
   const std::string calib_path = tempPath("calib.txt");
   writeEcdCalibration(calib_path, calib);
   const EcdCalibration c = readEcdCalibration(calib_path);

@@ -14,13 +14,15 @@
 namespace vwe_vo {
 
 struct EvaluationOptions {
-  double delta_s = 1.0;                  // RPE interval Delta [s]
-  double pair_step_s = 0.05;             // spacing of RPE pair start times and ATE samples [s]
-  double standstill_threshold_m = 0.01;  // |t_gt_rel| below this: pair left out of translation RPE [m]
-  double max_gap_s = 0.5;                // estimate samples further apart than this: untracked [s]
-  double yaw_rate_dt_s = 0.1;            // interval of the finite-difference yaw rate [s]
-  double segment_m = 10.0;               // ground-truth distance per scale-drift segment [m]
-  std::vector<double> extra_deltas_s = {0.5};  // further RPE intervals reported as "rpe_<delta>" [s]
+  double delta_s = 1.0;       // RPE interval Delta [s]
+  double pair_step_s = 0.05;  // spacing of RPE pair start times and ATE samples [s]
+  double standstill_threshold_m =
+      0.01;                    // |t_gt_rel| below this: pair left out of translation RPE [m]
+  double max_gap_s = 0.5;      // estimate samples further apart than this: untracked [s]
+  double yaw_rate_dt_s = 0.1;  // interval of the finite-difference yaw rate [s]
+  double segment_m = 10.0;     // ground-truth distance per scale-drift segment [m]
+  std::vector<double> extra_deltas_s = {
+      0.5};  // further RPE intervals reported as "rpe_<delta>" [s]
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -37,7 +39,8 @@ struct Sim3 {
 /// Least-squares similarity (or rigid motion if !with_scale) mapping src onto dst (Umeyama 1991,
 /// with the reflection fix, so R is always a rotation). Throws std::invalid_argument on size
 /// mismatch or fewer than 3 points, std::runtime_error if src has no spread.
-Sim3 alignUmeyama(const std::vector<Vec3>& src, const std::vector<Vec3>& dst, bool with_scale = true);
+Sim3 alignUmeyama(const std::vector<Vec3>& src, const std::vector<Vec3>& dst,
+                  bool with_scale = true);
 
 /// One RPE pair (t, t + Delta). trans_dir_err_deg_s is NaN for standstill pairs.
 struct RpePair {
@@ -67,19 +70,20 @@ struct ScaleDrift {
 };
 
 struct EvaluationResult {
-  RpeResult rpe;                    // at options.delta_s
-  std::vector<RpeResult> rpe_extra; // at options.extra_deltas_s that fit into the overlap
+  RpeResult rpe;                     // at options.delta_s
+  std::vector<RpeResult> rpe_extra;  // at options.extra_deltas_s that fit into the overlap
   double yaw_rate_rmse_deg_s = 0;
   int yaw_rate_samples = 0;
-  std::vector<double> yaw_rate_err_deg_s;  // estimated minus true, at rpe.series times (NaN if untracked)
+  std::vector<double>
+      yaw_rate_err_deg_s;  // estimated minus true, at rpe.series times (NaN if untracked)
   double ate_rmse_m = 0;
   double ate_percent_of_path = 0;  // ate_rmse_m / path_length_m * 100
   double ate_scale = 1;            // scale of the Sim(3) that aligns the estimate to ground truth
   double ate_se3_rmse_m = 0;       // the same after a rigid (no scale) alignment
   int ate_samples = 0;
-  Sim3 alignment;                  // estimate world -> ground-truth world
-  double path_length_m = 0;        // ground-truth distance over the evaluated overlap
-  double tracked_fraction = 0;     // estimate-covered time (gaps > max_gap_s excluded) / gt duration
+  Sim3 alignment;               // estimate world -> ground-truth world
+  double path_length_m = 0;     // ground-truth distance over the evaluated overlap
+  double tracked_fraction = 0;  // estimate-covered time (gaps > max_gap_s excluded) / gt duration
   int64_t gt_start_ns = 0, gt_end_ns = 0, est_start_ns = 0, est_end_ns = 0;
   ScaleDrift scale_drift;
 };
@@ -91,7 +95,8 @@ RpeResult computeRpe(const Trajectory3& gt, const Trajectory3& est, double delta
                      const EvaluationOptions& options);
 
 /// Every metric above. Throws like computeRpe (at options.delta_s).
-EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est, const EvaluationOptions& options);
+EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est,
+                          const EvaluationOptions& options);
 
 /// JSON with the keys of DESIGN.md "Interfaces"; NaN becomes null. "series" only if with_series.
 nlohmann::json toJson(const EvaluationResult& result, bool with_series = false);
