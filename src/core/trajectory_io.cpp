@@ -114,6 +114,7 @@ Trajectory3 readTum(const std::string& path) {
       in.fail("time " + std::to_string(v[0]) + " s is not after the previous pose's");
     traj.push_back(sp);
   }
+  if (traj.empty()) throw std::runtime_error(path + ": no poses (empty file or only comments)");
   return traj;
 }
 

@@ -18,7 +18,8 @@ struct StampedPose {
 };
 using Trajectory3 = std::vector<StampedPose>;
 
-/// Reads a TUM file. Throws on malformed lines, non-finite values, non-increasing time.
+/// Reads a TUM file. Throws on malformed lines, non-finite values, non-increasing time and on a
+/// file without any pose.
 Trajectory3 readTum(const std::string& path);
 /// Writes a TUM file (9 decimals for time, quaternion with qw last).
 void writeTum(const std::string& path, const Trajectory3& trajectory);
