@@ -4,7 +4,7 @@
 
 namespace vwe_vo {
 
-bool EventBuffer::push(const Event& e) {
+bool EventBuffer::push(const PixelEvent& e) {
   if (!events_.empty() && e.t_ns < events_.back().t_ns) {
     ++out_of_order_;
     return false;
@@ -15,13 +15,13 @@ bool EventBuffer::push(const Event& e) {
 
 size_t EventBuffer::push(const EventVector& events) {
   size_t accepted = 0;
-  for (const Event& e : events) accepted += push(e) ? 1 : 0;
+  for (const PixelEvent& e : events) accepted += push(e) ? 1 : 0;
   return accepted;
 }
 
 size_t EventBuffer::lowerBound(int64_t t_ns) const {
   const auto it = std::lower_bound(events_.begin(), events_.end(), t_ns,
-                                   [](const Event& e, int64_t t) { return e.t_ns < t; });
+                                   [](const PixelEvent& e, int64_t t) { return e.t_ns < t; });
   return static_cast<size_t>(it - events_.begin());
 }
 

@@ -56,7 +56,7 @@ void Frontend::reset() {
 
 bool Frontend::addEvents(const EventVector& events) {
   bool did_reset = false;
-  for (const Event& e : events) {
+  for (const PixelEvent& e : events) {
     ++stats_.events_in;
     if (!camera_.inside(e.x, e.y)) {
       ++stats_.events_outside;

@@ -153,7 +153,7 @@ EventVector readEcdEvents(const std::string& path, int width, int height) {
       in.fail("event at (" + std::to_string(int(v[1])) + ", " + std::to_string(int(v[2])) +
               ") is outside the " + std::to_string(width) + "x" + std::to_string(height) + " sensor");
     if (v[3] != 0 && v[3] != 1 && v[3] != -1) in.fail("polarity must be 0 or 1, got '" + line + "'");
-    Event e;
+    PixelEvent e;
     e.t_ns = secToNs(v[0]);
     e.x = static_cast<uint16_t>(v[1]);
     e.y = static_cast<uint16_t>(v[2]);
@@ -166,7 +166,7 @@ EventVector readEcdEvents(const std::string& path, int width, int height) {
 
 void writeEcdEvents(const std::string& path, const EventVector& events) {
   auto f = openForWriting(path);
-  for (const Event& e : events)
+  for (const PixelEvent& e : events)
     std::fprintf(f.get(), "%.9f %u %u %d\n", nsToSec(e.t_ns), e.x, e.y, e.polarity > 0 ? 1 : 0);
 }
 

@@ -32,7 +32,7 @@ VweEvaluation VweObjective::buildRays(const EventVector& events, const Trajector
   jac_value_.clear();
   rays_.reserve(events.size());
   const double fx = volume_->fx(), fy = volume_->fy(), cx = volume_->cx(), cy = volume_->cy();
-  for (const Event& e : events) {
+  for (const PixelEvent& e : events) {
     if (!model.covers(e.t_ns)) {
       ++ev.skipped_time;
       continue;

@@ -1,1 +1,122 @@
 #include "vwe_vo/ros/conversions.h"
+
+#include <stdexcept>
+
+namespace vwe_vo {
+
+int64_t toNs(const ros::Time& t) { return int64_t(t.sec) * kNsPerSec + int64_t(t.nsec); }
+
+ros::Time toRosTime(int64_t t_ns) {
+  ros::Time t;
+  t.fromNSec(uint64_t(std::max<int64_t>(0, t_ns)));
+  return t;
+}
+
+void eventsFromMsg(const EventArray& msg, EventVector* events, EventConversionStats* stats) {
+  events->clear();
+  events->reserve(msg.events.size());
+  size_t dropped = 0;
+  for (const vwe_vo::Event& m : msg.events) {
+    if (m.x >= msg.width || m.y >= msg.height) {
+      ++dropped;
+      continue;
+    }
+    PixelEvent e;
+    e.t_ns = toNs(m.ts);
+    e.x = m.x;
+    e.y = m.y;
+    e.polarity = m.polarity ? 1 : -1;
+    events->push_back(e);
+  }
+  if (stats) {
+    stats->converted += events->size();
+    stats->dropped += dropped;
+  }
+}
+
+void eventsToMsg(const EventVector& events, EventArray* msg) {
+  msg->events.resize(events.size());
+  for (size_t i = 0; i < events.size(); ++i) {
+    msg->events[i].x = events[i].x;
+    msg->events[i].y = events[i].y;
+    msg->events[i].ts = toRosTime(events[i].t_ns);
+    msg->events[i].polarity = events[i].polarity > 0;
+  }
+}
+
+CameraCalibration calibrationFromMsg(const sensor_msgs::CameraInfo& msg) {
+  CameraCalibration c;
+  c.width = int(msg.width);
+  c.height = int(msg.height);
+  c.fx = msg.K[0];
+  c.cx = msg.K[2];
+  c.fy = msg.K[4];
+  c.cy = msg.K[5];
+  if (!msg.D.empty() && msg.distortion_model != "plumb_bob" && msg.distortion_model != "radtan")
+    throw std::invalid_argument("CameraInfo: distortion_model '" + msg.distortion_model + "' is not supported (plumb_bob)");
+  if (msg.D.size() > 5) throw std::invalid_argument("CameraInfo: D has " + std::to_string(msg.D.size()) + " values, plumb_bob has 5");
+  for (size_t i = 0; i < msg.D.size(); ++i) c.distortion[i] = msg.D[i];
+  c.validate();
+  return c;
+}
+
+sensor_msgs::CameraInfo calibrationToMsg(const CameraCalibration& c) {
+  sensor_msgs::CameraInfo m;
+  m.width = uint32_t(c.width);
+  m.height = uint32_t(c.height);
+  m.distortion_model = "plumb_bob";
+  m.D.assign(c.distortion.begin(), c.distortion.end());
+  m.K = {c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1};
+  m.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  m.P = {c.fx, 0, c.cx, 0, 0, c.fy, c.cy, 0, 0, 0, 1, 0};
+  return m;
+}
+
+geometry_msgs::Pose poseToMsg(const Pose3& T) {
+  geometry_msgs::Pose p;
+  p.position.x = T.translation().x();
+  p.position.y = T.translation().y();
+  p.position.z = T.translation().z();
+  const Quat q(T.linear());
+  p.orientation.x = q.x();
+  p.orientation.y = q.y();
+  p.orientation.z = q.z();
+  p.orientation.w = q.w();
+  return p;
+}
+
+Pose3 poseFromMsg(const geometry_msgs::Pose& m) {
+  return makePose(Quat(m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z),
+                  Vec3(m.position.x, m.position.y, m.position.z));
+}
+
+AckermannArc arcToMsg(const ArcEstimate& a, const std::string& frame_id) {
+  AckermannArc m;
+  m.header.stamp = toRosTime(a.t_ref_ns);
+  m.header.frame_id = frame_id;
+  m.t_start = toRosTime(a.t_start_ns);
+  m.t_end = toRosTime(a.t_end_ns);
+  m.omega = a.omega;
+  m.v = a.v;
+  m.contrast = a.contrast;
+  m.confidence = a.confidence;
+  m.num_events = a.num_events;
+  m.status = uint8_t(a.status);
+  return m;
+}
+
+ArcEstimate arcFromMsg(const AckermannArc& m) {
+  ArcEstimate a;
+  a.t_ref_ns = toNs(m.header.stamp);
+  a.t_start_ns = toNs(m.t_start);
+  a.t_end_ns = toNs(m.t_end);
+  a.omega = m.omega;
+  a.v = m.v;
+  a.contrast = m.contrast;
+  a.confidence = m.confidence;
+  a.num_events = m.num_events;
+  a.status = m.status <= 3 ? ArcStatus(m.status) : ArcStatus::kLost;
+  return a;
+}
+
+}  // namespace vwe_vo

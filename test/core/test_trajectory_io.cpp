@@ -61,7 +61,7 @@ TEST(TrajectoryIo, TumWriteReadRoundTrip) {
 TEST(TrajectoryIo, EcdRoundTrips) {
   EventVector events;
   for (int i = 0; i < 1000; ++i) {
-    Event e;
+    PixelEvent e;
     e.t_ns = 1000000 + 37013LL * i;
     e.x = static_cast<uint16_t>((i * 7) % 346);
     e.y = static_cast<uint16_t>((i * 13) % 260);

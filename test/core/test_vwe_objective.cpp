@@ -3,8 +3,7 @@
 // location of its maximum for events generated from a known motion.
 #include <gtest/gtest.h>
 
-#include <random>
-
+#include "../common/synthetic_events.h"
 #include "vwe_vo/core/vwe_objective.h"
 
 using namespace vwe_vo;
@@ -44,31 +43,8 @@ CameraCalibration testCalibration() {
   return c;
 }
 
-/// Events of random 3D points seen by a camera moving with `truth`, times in [-0.15, 0.15] s.
 EventVector makeEvents(const CameraModel& cam, const TrajectoryModel& truth, int n, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> ux(-1, 1), uz(0, 1), ut(-0.15, 0.15);
-  std::vector<Vec3> points;
-  for (int i = 0; i < 400; ++i) {
-    const double z = 1.0 + 7.0 * uz(rng);
-    points.emplace_back(ux(rng) * 0.6 * z, ux(rng) * 0.45 * z, z);
-  }
-  EventVector events;
-  while (int(events.size()) < n) {
-    const int64_t t = secToNs(ut(rng));
-    const Vec3 p_Ct = truth.T_Cr_Ct(t, nullptr).inverse() * points[rng() % points.size()];
-    Vec2 uv;
-    if (!cam.project(p_Ct, &uv)) continue;
-    const int x = int(std::lround(uv.x())), y = int(std::lround(uv.y()));
-    if (!cam.inside(x, y)) continue;
-    Event e;
-    e.t_ns = t;
-    e.x = uint16_t(x);
-    e.y = uint16_t(y);
-    events.push_back(e);
-  }
-  std::sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.t_ns < b.t_ns; });
-  return events;
+  return vwe_vo::testing::randomPointEvents(cam, truth, n, seed);
 }
 
 VolumeOptions volumeOptions(int threads) {

@@ -9,22 +9,22 @@
 
 namespace vwe_vo {
 
-/// One event: pixel (x, y) on the sensor, time in int64 nanoseconds, polarity (+1 ON, -1 OFF).
-struct Event {
+/// One event (PixelEvent, not to be confused with the message vwe_vo::Event): pixel (x, y) on the sensor, time in int64 nanoseconds, polarity (+1 ON, -1 OFF).
+struct PixelEvent {
   int64_t t_ns = 0;
   uint16_t x = 0;
   uint16_t y = 0;
   int8_t polarity = 1;
 };
 
-using EventVector = std::vector<Event>;
+using EventVector = std::vector<PixelEvent>;
 
 /// A time-ordered store of events. push() refuses events older than the newest one held
 /// (it returns false and counts them); the caller decides whether that means a reset.
 class EventBuffer {
  public:
   /// Appends one event. Returns false (and counts it as out of order) if t_ns < newest time.
-  bool push(const Event& e);
+  bool push(const PixelEvent& e);
   /// Appends many; returns how many were accepted.
   size_t push(const EventVector& events);
 
@@ -41,14 +41,14 @@ class EventBuffer {
 
   size_t size() const { return events_.size(); }
   bool empty() const { return events_.empty(); }
-  const Event& operator[](size_t i) const { return events_[i]; }
+  const PixelEvent& operator[](size_t i) const { return events_[i]; }
   int64_t oldestTime() const { return events_.front().t_ns; }
   int64_t newestTime() const { return events_.back().t_ns; }
   /// Events refused by push() because they went back in time.
   size_t outOfOrderCount() const { return out_of_order_; }
 
  private:
-  std::deque<Event> events_;
+  std::deque<PixelEvent> events_;
   size_t out_of_order_ = 0;
 };
 

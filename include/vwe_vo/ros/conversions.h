@@ -1,1 +1,45 @@
+// Every translation between ROS messages and core types, and the one place where time is
+// converted (ros::Time <-> int64 nanoseconds). Nodes and tools call these; the core never
+// sees a message.
 #pragma once
+
+#include <geometry_msgs/Pose.h>
+#include <nav_msgs/Odometry.h>
+#include <ros/time.h>
+#include <sensor_msgs/CameraInfo.h>
+
+#include "vwe_vo/AckermannArc.h"
+#include "vwe_vo/EventArray.h"
+#include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/events.h"
+#include "vwe_vo/core/frontend.h"
+#include "vwe_vo/core/math.h"
+
+namespace vwe_vo {
+
+int64_t toNs(const ros::Time& t);
+ros::Time toRosTime(int64_t t_ns);
+
+struct EventConversionStats {
+  size_t converted = 0;
+  size_t dropped = 0;  // outside the message's width x height
+};
+
+/// Replaces *events with the events of msg; events outside msg.width x msg.height are dropped
+/// and counted (the caller also checks the size against the calibration).
+void eventsFromMsg(const EventArray& msg, EventVector* events, EventConversionStats* stats = nullptr);
+/// Fills msg.events from core events (header and size are the caller's).
+void eventsToMsg(const EventVector& events, EventArray* msg);
+
+/// Calibration from CameraInfo (plumb_bob or an empty D). Throws std::invalid_argument naming
+/// the field if it is unusable (zero focal length, wrong distortion model, ...).
+CameraCalibration calibrationFromMsg(const sensor_msgs::CameraInfo& msg);
+sensor_msgs::CameraInfo calibrationToMsg(const CameraCalibration& calib);
+
+geometry_msgs::Pose poseToMsg(const Pose3& T);
+Pose3 poseFromMsg(const geometry_msgs::Pose& msg);
+
+AckermannArc arcToMsg(const ArcEstimate& arc, const std::string& frame_id);
+ArcEstimate arcFromMsg(const AckermannArc& msg);
+
+}  // namespace vwe_vo

@@ -1,0 +1,99 @@
+// Throughput of the VWE: objective (+ gradient) evaluations per second and plane-votes per
+// second for a 30k-event volume, on 1 and 2 threads; and the DSI-sized voting workload of the
+// mapper (2 M events x 100 planes at full 346x260 resolution).
+#include <benchmark/benchmark.h>
+
+#include "../test/common/synthetic_events.h"
+#include "vwe_vo/core/ackermann_arc.h"
+#include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/config.h"
+#include "vwe_vo/core/vwe_objective.h"
+
+using namespace vwe_vo;
+
+namespace {
+const CameraModel& camera() {
+  static const CameraModel cam(loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+  return cam;
+}
+
+void BM_VweObjective(benchmark::State& state) {
+  const int threads = int(state.range(0));
+  const bool with_gradient = state.range(1) != 0;
+  const int num_events = int(state.range(2));
+  VolumeOptions vo;
+  vo.num_threads = threads;
+  const auto& c = camera().calibration();
+  ProjectiveVolume volume(vo, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
+  VweObjective objective(camera(), &volume);
+  const AckermannArcModel truth(0.4, 0.4, secToNs(10.0), defaultTBaseCam());
+  const EventVector events = testing::randomPointEvents(camera(), truth, num_events, 1, 0.15, 2000);
+  AckermannArcModel model(0.38, 0.4, secToNs(10.0), defaultTBaseCam());
+  Eigen::VectorXd g;
+  size_t votes = 0;
+  for (auto _ : state) {
+    const VweEvaluation e = objective.evaluate(events, model, with_gradient ? &g : nullptr);
+    votes += e.votes;
+    benchmark::DoNotOptimize(e.variance);
+  }
+  state.counters["evals_per_s"] = benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["plane_votes_per_s"] = benchmark::Counter(double(votes), benchmark::Counter::kIsRate);
+  state.counters["plane_votes_per_s_per_thread"] =
+      benchmark::Counter(double(votes) / threads, benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_VweObjective)
+    ->ArgNames({"threads", "gradient", "events"})
+    ->Args({1, 0, 30000})
+    ->Args({2, 0, 30000})
+    ->Args({2, 1, 30000})
+    ->Args({2, 0, 8000})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+/// Pure voting of precomputed rays: the kernel the VWE and the EMVS DSI share.
+void BM_VotingKernel(benchmark::State& state) {
+  const int threads = int(state.range(0));
+  const int num_events = int(state.range(1));
+  const int planes = int(state.range(2));
+  const double scale = state.range(3) / 100.0;
+  VolumeOptions vo;
+  vo.num_threads = threads;
+  vo.num_planes = planes;
+  vo.grid_scale = scale;
+  vo.margin_px = 0;
+  const auto& c = camera().calibration();
+  ProjectiveVolume volume(vo, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
+  const AckermannArcModel truth(0.4, 0.4, 0, defaultTBaseCam());
+  const EventVector events = testing::randomPointEvents(camera(), truth, 30000, 2, 0.5, 3000);
+  std::vector<VolumeRay> rays;
+  rays.reserve(num_events);
+  for (int i = 0; i < num_events; ++i) {
+    const PixelEvent& e = events[i % events.size()];
+    const Pose3 T = truth.T_Cr_Ct(e.t_ns);
+    VolumeRay r;
+    if (makeVolumeRay(T.translation(), T.linear() * camera().bearing(e.x, e.y).cast<double>(), volume.fx(),
+                      volume.fy(), volume.cx(), volume.cy(), &r))
+      rays.push_back(r);
+  }
+  size_t votes = 0;
+  for (auto _ : state) {
+    votes += volume.vote(rays);
+    benchmark::DoNotOptimize(volume.sum());
+    volume.clear(rays);
+  }
+  state.counters["plane_votes_per_s"] = benchmark::Counter(double(votes), benchmark::Counter::kIsRate);
+  state.counters["plane_votes_per_s_per_thread"] = benchmark::Counter(double(votes) / threads, benchmark::Counter::kIsRate);
+  state.counters["events_per_s"] =
+      benchmark::Counter(double(rays.size()) * state.iterations(), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_VotingKernel)
+    ->ArgNames({"threads", "events", "planes", "scale_pct"})
+    ->Args({1, 30000, 30, 50})
+    ->Args({2, 30000, 30, 50})
+    ->Args({1, 2000000, 100, 100})
+    ->Args({2, 2000000, 100, 100})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Runs every benchmark binary of the workspace with JSON output into OUTDIR (default out/bench)
+# and prints a one-line summary per benchmark. usage: run_bench.sh WS [OUTDIR] [FILTER]
+set -euo pipefail
+ws="${1:?workspace}"
+out="${2:-$(cd "$(dirname "$0")/.." && pwd)/out/bench}"
+filter="${3:-.}"
+bin="$ws/devel/lib/vwe_vo"
+mkdir -p "$out"
+shopt -s nullglob
+found=0
+for b in "$bin"/bench_*; do
+  [ -x "$b" ] || continue
+  found=1
+  name=$(basename "$b")
+  echo "[bench] $name"
+  "$b" --benchmark_filter="$filter" --benchmark_out="$out/$name.json" --benchmark_out_format=json \
+       --benchmark_counters_tabular=true
+done
+[ "$found" = 1 ] || { echo "[bench] no benchmark binaries in $bin (is libbenchmark-dev installed?)"; exit 1; }
+echo "[bench] JSON results in $out"
