@@ -27,7 +27,7 @@ void BM_VweObjective(benchmark::State& state) {
   ProjectiveVolume volume(vo, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
   VweObjective objective(camera(), &volume);
   const AckermannArcModel truth(0.4, 0.4, secToNs(10.0), defaultTBaseCam());
-  const EventVector events = testing::randomPointEvents(camera(), truth, num_events, 1, 0.15, 2000);
+  const EventVector events = synthetic::randomPointEvents(camera(), truth, num_events, 1, 0.15, 2000);
   AckermannArcModel model(0.38, 0.4, secToNs(10.0), defaultTBaseCam());
   Eigen::VectorXd g;
   size_t votes = 0;
@@ -64,7 +64,7 @@ void BM_VotingKernel(benchmark::State& state) {
   const auto& c = camera().calibration();
   ProjectiveVolume volume(vo, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
   const AckermannArcModel truth(0.4, 0.4, 0, defaultTBaseCam());
-  const EventVector events = testing::randomPointEvents(camera(), truth, 30000, 2, 0.5, 3000);
+  const EventVector events = synthetic::randomPointEvents(camera(), truth, 30000, 2, 0.5, 3000);
   std::vector<VolumeRay> rays;
   rays.reserve(num_events);
   for (int i = 0; i < num_events; ++i) {

@@ -10,7 +10,7 @@
 #include "vwe_vo/core/trajectory_model.h"
 
 namespace vwe_vo {
-namespace testing {
+namespace synthetic {
 
 /// n events of `num_points` random points (depth 1-8 m, inside the field of view of the
 /// reference camera) at uniform times in [t_ref - half_span, t_ref + half_span], sorted.
@@ -43,5 +43,5 @@ inline EventVector randomPointEvents(const CameraModel& cam, const TrajectoryMod
   return events;
 }
 
-}  // namespace testing
+}  // namespace synthetic
 }  // namespace vwe_vo

@@ -44,7 +44,7 @@ CameraCalibration testCalibration() {
 }
 
 EventVector makeEvents(const CameraModel& cam, const TrajectoryModel& truth, int n, unsigned seed) {
-  return vwe_vo::testing::randomPointEvents(cam, truth, n, seed);
+  return vwe_vo::synthetic::randomPointEvents(cam, truth, n, seed);
 }
 
 VolumeOptions volumeOptions(int threads) {

@@ -1,0 +1,108 @@
+// Front-end against known arcs: events of random 3D points seen along a constant Ackermann arc.
+#include <gtest/gtest.h>
+
+#include "../common/synthetic_events.h"
+#include "vwe_vo/core/config.h"
+#include "vwe_vo/core/frontend.h"
+
+using namespace vwe_vo;
+
+namespace {
+const CameraModel& camera() {
+  static const CameraModel cam(loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+  return cam;
+}
+FrontendOptions options() {
+  FrontendOptions o;
+  o.window_duration_s = 0.3;
+  o.nominal_speed_mps = 0.4;
+  o.standstill_event_rate_hz = 5000;
+  return o;
+}
+}  // namespace
+
+TEST(Frontend, RecoversTheYawRateOfAConstantArc) {
+  for (double w_deg : {-30.0, 0.0, 20.0}) {
+    const double w = w_deg / kDegPerRad;
+    const AckermannArcModel truth(w, 0.4, secToNs(5.0), defaultTBaseCam());
+    // 1.5 s of events around t = 5 s: windows [4.25, 4.55), ... each fully covered.
+    const EventVector events = synthetic::randomPointEvents(camera(), truth, 60000, 11, 0.75, 600);
+    Frontend fe(options(), camera(), defaultTBaseCam());
+    fe.addEvents(events);
+    const std::vector<ArcEstimate> arcs = fe.process();
+    ASSERT_GE(arcs.size(), 4u);
+    for (const ArcEstimate& a : arcs) {
+      EXPECT_EQ(a.status, ArcStatus::kOk);
+      EXPECT_NEAR(a.omega * kDegPerRad, w_deg, 0.5) << "window at " << nsToSec(a.t_ref_ns);
+      EXPECT_DOUBLE_EQ(a.v, 0.4);
+      EXPECT_GT(a.confidence, 0.05);
+    }
+    // Dead reckoning along the arcs reproduces the true arc's relative motion.
+    const Pose3 T_a = fe.T_odom_base(arcs.front().t_start_ns), T_b = fe.T_odom_base(arcs.back().t_end_ns);
+    const double dyaw = wrapAngle(yawOf((T_a.inverse() * T_b).linear()));
+    EXPECT_NEAR(dyaw, w * nsToSec(arcs.back().t_end_ns - arcs.front().t_start_ns), 0.01);
+  }
+}
+
+TEST(Frontend, LowEventRateIsStandstillNotARandomOmega) {
+  FrontendOptions o = options();
+  o.standstill_event_rate_hz = 20000;
+  Frontend fe(o, camera(), defaultTBaseCam());
+  EventVector noise;
+  for (int i = 0; i < 3000; ++i) {  // 3000 events over 1 s: 3 kev/s of noise
+    PixelEvent e;
+    e.t_ns = secToNs(1.0 + i / 3000.0);
+    e.x = uint16_t((i * 7919) % 346);
+    e.y = uint16_t((i * 104729) % 260);
+    noise.push_back(e);
+  }
+  fe.addEvents(noise);
+  const auto arcs = fe.process();
+  ASSERT_GE(arcs.size(), 3u);
+  for (const ArcEstimate& a : arcs) {
+    EXPECT_EQ(a.status, ArcStatus::kStandstill);
+    EXPECT_EQ(a.omega, 0.0);
+    EXPECT_EQ(a.v, 0.0);
+  }
+}
+
+TEST(Frontend, OdometryAtRestMeansStandstill) {
+  const AckermannArcModel truth(0.3, 0.4, secToNs(5.0), defaultTBaseCam());
+  const EventVector events = synthetic::randomPointEvents(camera(), truth, 20000, 3, 0.5, 600);
+  Frontend fe(options(), camera(), defaultTBaseCam());
+  for (double t = 4.0; t < 6.0; t += 0.02) fe.addOdometry(secToNs(t), 0.0, 0.0);
+  fe.addEvents(events);
+  for (const ArcEstimate& a : fe.process()) EXPECT_EQ(a.status, ArcStatus::kStandstill);
+}
+
+TEST(Frontend, BadInputIsCountedAndLoopedDataResets) {
+  Frontend fe(options(), camera(), defaultTBaseCam());
+  EventVector ev(3);
+  ev[0].t_ns = secToNs(2.0);
+  ev[1].t_ns = secToNs(2.001);
+  ev[1].x = 400;  // outside the 346x260 sensor
+  ev[2].t_ns = secToNs(1.999);  // 2 ms back: late, dropped
+  EXPECT_FALSE(fe.addEvents(ev));
+  EXPECT_EQ(fe.stats().events_outside, 1u);
+  EXPECT_EQ(fe.stats().events_out_of_order, 1u);
+  EventVector looped(1);
+  looped[0].t_ns = secToNs(0.5);  // 1.5 s back: a looped bag
+  EXPECT_TRUE(fe.addEvents(looped));
+  EXPECT_EQ(fe.stats().resets, 1u);
+  EXPECT_TRUE(fe.process().empty());
+  EXPECT_NO_THROW(fe.addEvents({}));
+}
+
+TEST(Frontend, InvalidOptionsAreRefusedNamingTheField) {
+  FrontendOptions o;
+  o.window_duration_s = 0;
+  try {
+    o.validate();
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("window_duration_s"), std::string::npos);
+  }
+  o = FrontendOptions();
+  o.volume.num_planes = 1;
+  EXPECT_THROW(o.validate(), std::invalid_argument);
+}
