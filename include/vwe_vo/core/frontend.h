@@ -28,9 +28,9 @@ struct FrontendOptions {
   size_t max_events_per_volume = 8000;     // events voted per window (uniform subsampling)
   double nominal_speed_mps = 0.3;          // v when no odometry is given [m/s]
   double omega_max_rad_s = 1.2;            // |omega| bound of the full scan [rad/s]
-  double scan_half_range_rad_s = 0.35;     // scan around the previous omega [rad/s]
-  double scan_step_rad_s = 0.02;           // coarse scan step [rad/s]
-  double refine_tolerance_rad_s = 2e-4;    // 1-D refinement stops at this bracket width [rad/s]
+  double scan_half_range_rad_s = 0.15;     // scan around the previous omega [rad/s]
+  double scan_step_rad_s = 0.03;           // coarse scan step [rad/s]
+  double refine_tolerance_rad_s = 3e-4;    // 1-D refinement stops at this bracket width [rad/s]
   double standstill_event_rate_hz = 30000; // below this event rate the vehicle is standing [ev/s]
   double standstill_speed_mps = 0.02;      // odometry speed below this means standstill [m/s]
   size_t min_events = 1500;                // fewer events in a window: LOW_EVENTS, omega held
