@@ -3,6 +3,7 @@
 #include <zlib.h>
 
 #include <cerrno>
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -138,30 +139,51 @@ bool interpolateTrajectory(const Trajectory3& traj, int64_t t_ns, Pose3* T) {
   return true;
 }
 
-EventVector readEcdEvents(const std::string& path, int width, int height) {
-  LineReader in(path);
-  EventVector events;
+struct EcdEventReader::Impl {
+  Impl(const std::string& path, int w, int h) : in(path), width(w), height(h) {}
+  LineReader in;
+  int width, height;
+  int64_t last_t_ns = INT64_MIN;
   std::string line;
   std::vector<double> v;
-  while (in.next(&line)) {
+};
+
+EcdEventReader::EcdEventReader(const std::string& path, int width, int height)
+    : impl_(std::make_unique<Impl>(path, width, height)) {}
+EcdEventReader::~EcdEventReader() = default;
+
+size_t EcdEventReader::read(size_t max_events, EventVector* out) {
+  out->clear();
+  Impl& r = *impl_;
+  while (out->size() < max_events && r.in.next(&r.line)) {
+    const std::string& line = r.line;
+    std::vector<double>& v = r.v;
     if (isBlankOrComment(line)) continue;
-    if (!parseNumbers(line, 4, 4, &v)) in.fail("expected 4 numbers 't x y p', got '" + line + "'");
+    if (!parseNumbers(line, 4, 4, &v)) r.in.fail("expected 4 numbers 't x y p', got '" + line + "'");
     if (v[1] < 0 || v[2] < 0 || v[1] != std::floor(v[1]) || v[2] != std::floor(v[2]) || v[1] > 65535 ||
         v[2] > 65535)
-      in.fail("pixel coordinates must be non-negative integers, got '" + line + "'");
-    if ((width > 0 && v[1] >= width) || (height > 0 && v[2] >= height))
-      in.fail("event at (" + std::to_string(int(v[1])) + ", " + std::to_string(int(v[2])) +
-              ") is outside the " + std::to_string(width) + "x" + std::to_string(height) + " sensor");
-    if (v[3] != 0 && v[3] != 1 && v[3] != -1) in.fail("polarity must be 0 or 1, got '" + line + "'");
+      r.in.fail("pixel coordinates must be non-negative integers, got '" + line + "'");
+    if ((r.width > 0 && v[1] >= r.width) || (r.height > 0 && v[2] >= r.height))
+      r.in.fail("event at (" + std::to_string(int(v[1])) + ", " + std::to_string(int(v[2])) +
+                ") is outside the " + std::to_string(r.width) + "x" + std::to_string(r.height) + " sensor");
+    if (v[3] != 0 && v[3] != 1 && v[3] != -1) r.in.fail("polarity must be 0 or 1, got '" + line + "'");
     PixelEvent e;
     e.t_ns = secToNs(v[0]);
     e.x = static_cast<uint16_t>(v[1]);
     e.y = static_cast<uint16_t>(v[2]);
     e.polarity = v[3] > 0 ? 1 : -1;
-    if (!events.empty() && e.t_ns < events.back().t_ns) in.fail("time goes backwards at " + std::to_string(v[0]) + " s");
-    events.push_back(e);
+    if (e.t_ns < r.last_t_ns) r.in.fail("time goes backwards at " + std::to_string(v[0]) + " s");
+    r.last_t_ns = e.t_ns;
+    out->push_back(e);
   }
-  return events;
+  return out->size();
+}
+
+EventVector readEcdEvents(const std::string& path, int width, int height) {
+  EcdEventReader reader(path, width, height);
+  EventVector all, chunk;
+  while (reader.read(1 << 20, &chunk) > 0) all.insert(all.end(), chunk.begin(), chunk.end());
+  return all;
 }
 
 void writeEcdEvents(const std::string& path, const EventVector& events) {

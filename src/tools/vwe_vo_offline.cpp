@@ -33,6 +33,17 @@ bool fileExists(const std::string& p) {
   return stat(p.c_str(), &st) == 0;
 }
 
+/// Duration of the ECD folder's ground truth if there is one (for the progress line), else 0.
+double groundTruthDuration(const std::string& dir) {
+  if (!fileExists(dir + "/groundtruth.txt")) return 0.0;
+  try {
+    const vwe_vo::Trajectory3 gt = vwe_vo::readTum(dir + "/groundtruth.txt");
+    return vwe_vo::dtSec(gt.back().t_ns, gt.front().t_ns);
+  } catch (const std::exception&) {
+    return 0.0;
+  }
+}
+
 class Progress {
  public:
   explicit Progress(bool quiet) : quiet_(quiet), last_(std::chrono::steady_clock::now()) {}
@@ -92,7 +103,7 @@ int main(int argc, char** argv) {
     const auto wall0 = std::chrono::steady_clock::now();
     Progress progress(quiet);
     nlohmann::json input;
-    vwe_vo::EventVector all;
+    std::string ecd_events;
     if (args.count("--ecd")) {
       const std::string dir = args["--ecd"];
       const vwe_vo::EcdCalibration c = vwe_vo::readEcdCalibration(dir + "/calib.txt");
@@ -101,15 +112,17 @@ int main(int argc, char** argv) {
       if (fileExists(dir + "/extrinsics.txt")) cfg.T_base_cam = vwe_vo::readPoseLine(dir + "/extrinsics.txt");
       const std::string events_path = fileExists(dir + "/events.txt") ? dir + "/events.txt" : dir + "/events.txt.gz";
       if (!quiet) std::fprintf(stderr, "[vwe_vo_offline] reading %s\n", events_path.c_str());
-      all = vwe_vo::readEcdEvents(events_path, cfg.camera.width, cfg.camera.height);
+      ecd_events = events_path;
       input = {{"ecd", dir}};
     }
     vwe_vo::OfflinePipeline pipeline(cfg);
     if (args.count("--ecd")) {
-      const double total = all.empty() ? 0.0 : vwe_vo::dtSec(all.back().t_ns, all.front().t_ns);
-      const size_t chunk = 50000;
-      for (size_t i = 0; i < all.size(); i += chunk) {
-        pipeline.addEvents(vwe_vo::EventVector(all.begin() + i, all.begin() + std::min(all.size(), i + chunk)));
+      // Streamed in chunks: memory does not grow with the length of the recording.
+      const double total = groundTruthDuration(args["--ecd"]);
+      vwe_vo::EcdEventReader reader(ecd_events, cfg.camera.width, cfg.camera.height);
+      vwe_vo::EventVector chunk;
+      while (reader.read(50000, &chunk) > 0) {
+        pipeline.addEvents(chunk);
         progress.update(pipeline, total);
       }
     } else {

@@ -4,6 +4,7 @@
 // nothing is skipped silently (comment lines starting with '#' and blank lines are allowed).
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,18 @@ bool interpolateTrajectory(const Trajectory3& trajectory, int64_t t_ns, Pose3* T
 /// Event Camera Dataset events.txt (or .gz): `t x y p` per line, t in seconds, p in {0, 1}.
 /// Throws on malformed lines, events outside width x height (if given > 0), time going back.
 EventVector readEcdEvents(const std::string& path, int width = 0, int height = 0);
+/// The same, streamed in chunks so that memory does not grow with the file.
+class EcdEventReader {
+ public:
+  EcdEventReader(const std::string& path, int width = 0, int height = 0);
+  ~EcdEventReader();
+  /// Replaces *out with up to max_events next events; returns how many (0 at the end).
+  size_t read(size_t max_events, EventVector* out);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 void writeEcdEvents(const std::string& path, const EventVector& events);
 
 /// calib.txt: `fx fy cx cy k1 k2 p1 p2 k3` (the last five optional, default 0).
