@@ -19,33 +19,39 @@ namespace {
 class Section {
  public:
   Section(const YAML::Node& parent, const std::string& name) : name_(name) {
-    if (parent && parent[name]) node_ = parent[name];
-    if (node_ && !node_.IsMap()) throw std::invalid_argument("section '" + name + "' must be a map");
+    // Const access only: yaml-cpp's non-const operator[] inserts missing keys.
+    const YAML::Node& p = parent;
+    present_ = p && p.IsMap() && p[name] && !p[name].IsNull();
+    if (present_) node_ = p[name];
+    if (present_ && !node_.IsMap()) throw std::invalid_argument("section '" + name + "' must be a map");
   }
   template <typename T>
   void get(const char* key, T* value) {
     used_.insert(key);
-    if (!node_ || !node_[key]) return;
+    const YAML::Node& n = node_;
+    if (!present_ || !n[key]) return;
     try {
-      *value = node_[key].as<T>();
+      *value = n[key].as<T>();
     } catch (const YAML::Exception& e) {
       throw std::invalid_argument(name_ + "." + key + ": cannot read value (" + e.what() + ")");
     }
   }
   void nested(const char* key) { used_.insert(key); }
   void reportUnknown(std::vector<std::string>* warnings) const {
-    if (!node_ || !warnings) return;
+    if (!present_ || !warnings) return;
     for (const auto& kv : node_) {
       const std::string k = kv.first.as<std::string>();
       if (!used_.count(k)) warnings->push_back("unknown key '" + name_ + "." + k + "' ignored");
     }
   }
   const YAML::Node& node() const { return node_; }
+  bool present() const { return present_; }
 
  private:
   std::string name_;
   YAML::Node node_;
   std::set<std::string> used_;
+  bool present_ = false;
 };
 
 }  // namespace
@@ -67,7 +73,7 @@ void loadOptions(const YAML::Node& node, const std::string& section, FrontendOpt
                  std::vector<std::string>* warnings) {
   Section s(node, section);
   s.nested("volume");
-  if (s.node()) loadOptions(s.node(), "volume", &o->volume, warnings);
+  if (s.present()) loadOptions(s.node(), "volume", &o->volume, warnings);
   s.get("window_by_count", &o->window_by_count);
   s.get("window_duration_s", &o->window_duration_s);
   s.get("window_events", &o->window_events);
