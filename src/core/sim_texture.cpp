@@ -35,39 +35,6 @@ Texture::Texture(int size, std::vector<float> image, float texel_size_m)
   }
 }
 
-float Texture::bilinear(int level, float u_texel, float v_texel) const {
-  const int s = size_ >> level;
-  const int mask = s - 1;
-  const float fu = u_texel - 0.5f, fv = v_texel - 0.5f;
-  const float x0f = std::floor(fu), y0f = std::floor(fv);
-  const float ax = fu - x0f, ay = fv - y0f;
-  const int x0 = static_cast<int>(x0f) & mask, y0 = static_cast<int>(y0f) & mask;
-  const int x1 = (x0 + 1) & mask, y1 = (y0 + 1) & mask;
-  const float* d = levels_[level].data();
-  const float a = d[y0 * s + x0] + ax * (d[y0 * s + x1] - d[y0 * s + x0]);
-  const float b = d[y1 * s + x0] + ax * (d[y1 * s + x1] - d[y1 * s + x0]);
-  return a + ay * (b - a);
-}
-
-float Texture::sample(float u_m, float v_m, float footprint_m) const {
-  // Texel coordinates of level 0; keep them small so float keeps sub-texel precision.
-  float ut = u_m * inv_texel_m_, vt = v_m * inv_texel_m_;
-  const float period = static_cast<float>(size_);
-  ut -= period * std::floor(ut / period);
-  vt -= period * std::floor(vt / period);
-  const float ratio = footprint_m * inv_texel_m_;
-  if (ratio <= 1.0f) return bilinear(0, ut, vt);
-  const int max_level = static_cast<int>(levels_.size()) - 1;
-  const float lambda = std::log2(ratio);
-  int l0 = static_cast<int>(lambda);
-  if (l0 >= max_level) return levels_[max_level][0];
-  const float f = lambda - static_cast<float>(l0);
-  const float s0 = 1.0f / static_cast<float>(1 << l0);
-  const float a = bilinear(l0, ut * s0, vt * s0);
-  const float b = bilinear(l0 + 1, ut * s0 * 0.5f, vt * s0 * 0.5f);
-  return a + f * (b - a);
-}
-
 namespace {
 
 // Seamless (wrapping) band of noise: a random grid of `cells` x `cells` values, bicubically
@@ -140,11 +107,11 @@ Texture makeTexture(TextureStyle style, int size, float texel_size_m, uint64_t s
   const float sz = static_cast<float>(size);
   // Work in log2 intensity (stops below white), then convert to linear.
   cv::Mat1f L(size, size, -1.0f);
-  float noise_stops = 0.45f;
+  float noise_stops = 0.3f;
   switch (style) {
     case TextureStyle::kGeneric:
       L.setTo(-0.8f - 1.2f * u01(rng));
-      drawRandomShapes(L, 260, -3.0f, -0.1f, sz * 0.01f, sz * 0.35f, rng);
+      drawRandomShapes(L, 150, -2.6f, -0.2f, sz * 0.015f, sz * 0.35f, rng);
       break;
     case TextureStyle::kPoster:
       L.setTo(-0.2f - 0.6f * u01(rng));
@@ -163,8 +130,8 @@ Texture makeTexture(TextureStyle style, int size, float texel_size_m, uint64_t s
         cv::line(L, cv::Point(k * tile, 0), cv::Point(k * tile, size), cv::Scalar(-2.3f), std::max(1, size / 256));
         cv::line(L, cv::Point(0, k * tile), cv::Point(size, k * tile), cv::Scalar(-2.3f), std::max(1, size / 256));
       }
-      drawRandomShapes(L, 120, -2.6f, -0.8f, sz * 0.005f, sz * 0.12f, rng);
-      noise_stops = 0.5f;
+      drawRandomShapes(L, 80, -2.3f, -1.0f, sz * 0.005f, sz * 0.12f, rng);
+      noise_stops = 0.3f;
       break;
     }
     case TextureStyle::kFacade: {
@@ -190,7 +157,7 @@ Texture makeTexture(TextureStyle style, int size, float texel_size_m, uint64_t s
       noise_stops = 0.4f;
       break;
   }
-  L += noise_stops * multiScaleNoise(size, 4, 0.8f, rng);
+  L += noise_stops * multiScaleNoise(size, 4, 0.65f, rng);
   std::vector<float> lin(static_cast<size_t>(size) * size);
   for (int y = 0; y < size; ++y)
     for (int x = 0; x < size; ++x) lin[y * size + x] = std::clamp(std::exp2(L(y, x)), 0.03f, 1.0f);

@@ -34,7 +34,7 @@ struct EventSimulatorOptions {
   double noise_rate_hz = 0.1;          // background-activity noise per pixel [Hz]
   int num_hot_pixels = 0;              // pixels that fire at hot_pixel_rate_hz [-]
   double hot_pixel_rate_hz = 50.0;     // rate of a hot pixel [Hz]
-  double log_eps = 1e-3;               // added to linear intensity (white = 1) before the log [-]
+  double log_eps = 0.02;               // dark-current floor added to linear intensity (white = 1) before the log [-]
   int supersampling = 1;               // s x s rays per pixel (textures are filtered anyway) [-]
   double max_pixel_motion_px = 0.8;    // adaptive render step: max predicted motion per step [px]
   double max_log_step = 0.05;          // adaptive step: max global log-illumination change per step [-]
