@@ -148,7 +148,8 @@ std::vector<SequenceSpec> standardSequences() {
     s.scene = "street";
     s.seed = 21;
     s.profile = streetProfile(s.seed, 40.0);
-    s.trajectory.vibration.height_amplitude_m = 0.0;
+    // A car mount: 1.4 m above the road, 1.5 m ahead of the rear axle, pitched 5 deg down.
+    s.T_base_cam = mountToTBaseCam(Vec3(1.5, 0.0, 1.4), 0.0, 5.0 * kDeg, 0.0);
     s.simulator.seed = s.seed;
     out.push_back(s);
   }
@@ -169,7 +170,7 @@ std::vector<SequenceInfo> listSequences() {
   std::vector<SequenceInfo> out;
   for (const auto& s : standardSequences()) {
     const auto tr = VehicleTrajectory::fromProfile(s.profile, s.trajectory);
-    out.push_back({s.name, s.description, tr.durationSec(), tr.pathLength()});
+    out.push_back({s.name, s.description, tr.durationSec(), tr.pathLength(), s.seed});
   }
   return out;
 }

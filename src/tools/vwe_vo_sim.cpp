@@ -158,9 +158,10 @@ std::string fmt(const char* f, double v) {
 
 int run(const Args& args) {
   if (args.list) {
-    std::printf("%-18s %9s %9s  %s\n", "name", "duration", "path", "description");
+    std::printf("%-18s %9s %9s %5s  %s\n", "name", "duration", "path", "seed", "description");
     for (const auto& s : sim::listSequences())
-      std::printf("%-18s %8.1fs %8.1fm  %s\n", s.name.c_str(), s.duration_s, s.path_length_m, s.description.c_str());
+      std::printf("%-18s %8.1fs %8.1fm %5llu  %s\n", s.name.c_str(), s.duration_s, s.path_length_m,
+                  static_cast<unsigned long long>(s.seed), s.description.c_str());
     return 0;
   }
   sim::SequenceSpec spec = sim::findSequence(args.sequence);
@@ -170,7 +171,7 @@ int run(const Args& args) {
   }
   // Calibration and mount: --calib, else the config's camera_calibration, else config/davis346.yaml.
   std::string calib_path = args.calib;
-  Pose3 T_base_cam = defaultTBaseCam();
+  Pose3 T_base_cam = spec.T_base_cam;
   if (!args.config.empty()) {
     T_base_cam = loadTBaseCam(args.config);
     if (calib_path.empty()) {

@@ -36,7 +36,7 @@ struct EventSimulatorOptions {
   double hot_pixel_rate_hz = 50.0;     // rate of a hot pixel [Hz]
   double log_eps = 0.02;               // dark-current floor added to linear intensity (white = 1) before the log [-]
   int supersampling = 1;               // s x s rays per pixel (textures are filtered anyway) [-]
-  double max_pixel_motion_px = 0.8;    // adaptive render step: max predicted motion per step [px]
+  double max_pixel_motion_px = 1.0;    // adaptive render step: max predicted motion per step [px]
   double max_log_step = 0.05;          // adaptive step: max global log-illumination change per step [-]
   double min_render_step_s = 1e-4;     // lower bound of the render step [s]
   double max_render_step_s = 5e-3;     // upper bound of the render step [s]

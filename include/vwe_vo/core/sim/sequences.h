@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "vwe_vo/core/config.h"
 #include "vwe_vo/core/sim/event_simulator.h"
 #include "vwe_vo/core/sim/vehicle_trajectory.h"
 
@@ -32,6 +33,7 @@ struct SequenceSpec {
   std::vector<ProfileSegment> profile;
   VehicleTrajectoryOptions trajectory;
   EventSimulatorOptions simulator;
+  Pose3 T_base_cam = defaultTBaseCam();  // camera mount used unless the caller's config gives one
   double durationSec() const;
 };
 
@@ -44,6 +46,7 @@ struct SequenceInfo {
   std::string name, description;
   double duration_s = 0;     // [s]
   double path_length_m = 0;  // [m]
+  uint64_t seed = 0;         // fixed seed of the sequence
 };
 std::vector<SequenceInfo> listSequences();
 
