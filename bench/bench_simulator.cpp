@@ -22,7 +22,7 @@ void simulate(benchmark::State& state, const std::string& name, double seconds, 
   size_t events = 0;
   double wall = 0;
   for (auto _ : state) {
-    sim::EventSimulator simulator(scene, camera, defaultTBaseCam(), trajectory, options);
+    sim::EventSimulator simulator(scene, camera, spec.T_base_cam, trajectory, options);
     EventVector out;
     const auto t0 = std::chrono::steady_clock::now();
     for (int64_t t = 0; t < secToNs(seconds);) {
