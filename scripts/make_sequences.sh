@@ -4,8 +4,10 @@
 # sequence name, seed and generator version. Usage: scripts/make_sequences.sh [NAME...]
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+set +u  # ROS's setup scripts read unset variables
 # shellcheck disable=SC1091
 source "$ROOT/scripts/ros_env.sh"
+set -u
 BIN="${VWE_WS:-$ROOT/.build/ws}/devel/lib/vwe_vo/vwe_vo_sim"
 VERSION="sim-v1"   # bump when the simulator's output changes
 OUT="$ROOT/out/sequences"
