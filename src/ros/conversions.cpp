@@ -7,8 +7,9 @@ namespace vwe_vo {
 int64_t toNs(const ros::Time& t) { return int64_t(t.sec) * kNsPerSec + int64_t(t.nsec); }
 
 ros::Time toRosTime(int64_t t_ns) {
+  if (t_ns < 0) throw std::invalid_argument("toRosTime: negative time " + std::to_string(t_ns) + " ns");
   ros::Time t;
-  t.fromNSec(uint64_t(std::max<int64_t>(0, t_ns)));
+  t.fromNSec(uint64_t(t_ns));
   return t;
 }
 
@@ -44,6 +45,28 @@ void eventsToMsg(const EventVector& events, EventArray* msg) {
   }
 }
 
+EventArray eventsToMsg(const EventVector& events, size_t begin, size_t end, int width, int height,
+                       const std::string& frame_id, int64_t epoch_ns, int64_t stamp_ns) {
+  if (begin > end || end > events.size())
+    throw std::invalid_argument("eventsToMsg: range [" + std::to_string(begin) + ", " + std::to_string(end) +
+                                ") outside " + std::to_string(events.size()) + " events");
+  EventArray msg;
+  msg.header.frame_id = frame_id;
+  msg.width = uint32_t(width);
+  msg.height = uint32_t(height);
+  msg.events.resize(end - begin);
+  for (size_t i = begin; i < end; ++i) {
+    auto& m = msg.events[i - begin];
+    m.x = events[i].x;
+    m.y = events[i].y;
+    m.ts = toRosTime(events[i].t_ns + epoch_ns);
+    m.polarity = events[i].polarity > 0;
+  }
+  const int64_t stamp = stamp_ns >= 0 ? stamp_ns : (end > begin ? events[end - 1].t_ns : 0);
+  msg.header.stamp = toRosTime(stamp + epoch_ns);
+  return msg;
+}
+
 CameraCalibration calibrationFromMsg(const sensor_msgs::CameraInfo& msg) {
   CameraCalibration c;
   c.width = int(msg.width);
@@ -60,8 +83,9 @@ CameraCalibration calibrationFromMsg(const sensor_msgs::CameraInfo& msg) {
   return c;
 }
 
-sensor_msgs::CameraInfo calibrationToMsg(const CameraCalibration& c) {
+sensor_msgs::CameraInfo calibrationToMsg(const CameraCalibration& c, const std::string& frame_id) {
   sensor_msgs::CameraInfo m;
+  m.header.frame_id = frame_id;
   m.width = uint32_t(c.width);
   m.height = uint32_t(c.height);
   m.distortion_model = "plumb_bob";
@@ -72,22 +96,50 @@ sensor_msgs::CameraInfo calibrationToMsg(const CameraCalibration& c) {
   return m;
 }
 
+geometry_msgs::Point pointToMsg(const Vec3& p) {
+  geometry_msgs::Point m;
+  m.x = p.x();
+  m.y = p.y();
+  m.z = p.z();
+  return m;
+}
+
+geometry_msgs::Vector3 vectorToMsg(const Vec3& v) {
+  geometry_msgs::Vector3 m;
+  m.x = v.x();
+  m.y = v.y();
+  m.z = v.z();
+  return m;
+}
+
+geometry_msgs::Quaternion quaternionToMsg(const Quat& q_in) {
+  const Quat q = q_in.normalized();
+  geometry_msgs::Quaternion m;
+  m.x = q.x();
+  m.y = q.y();
+  m.z = q.z();
+  m.w = q.w();
+  return m;
+}
+
 geometry_msgs::Pose poseToMsg(const Pose3& T) {
   geometry_msgs::Pose p;
-  p.position.x = T.translation().x();
-  p.position.y = T.translation().y();
-  p.position.z = T.translation().z();
-  const Quat q(T.linear());
-  p.orientation.x = q.x();
-  p.orientation.y = q.y();
-  p.orientation.z = q.z();
-  p.orientation.w = q.w();
+  p.position = pointToMsg(T.translation());
+  p.orientation = quaternionToMsg(Quat(T.linear()));
   return p;
 }
 
 Pose3 poseFromMsg(const geometry_msgs::Pose& m) {
-  return makePose(Quat(m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z),
-                  Vec3(m.position.x, m.position.y, m.position.z));
+  const Quat q(m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z);
+  if (!(q.norm() > 1e-9)) throw std::invalid_argument("Pose message: zero quaternion");
+  return makePose(q, Vec3(m.position.x, m.position.y, m.position.z));
+}
+
+geometry_msgs::Transform transformToMsg(const Pose3& T) {
+  geometry_msgs::Transform m;
+  m.translation = vectorToMsg(T.translation());
+  m.rotation = quaternionToMsg(Quat(T.linear()));
+  return m;
 }
 
 AckermannArc arcToMsg(const ArcEstimate& a, const std::string& frame_id) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <geometry_msgs/Pose.h>
+#include <geometry_msgs/Transform.h>
 #include <nav_msgs/Odometry.h>
 #include <ros/time.h>
 #include <sensor_msgs/CameraInfo.h>
@@ -18,6 +19,7 @@
 namespace vwe_vo {
 
 int64_t toNs(const ros::Time& t);
+/// Throws std::invalid_argument for negative times (ros::Time cannot hold them).
 ros::Time toRosTime(int64_t t_ns);
 
 struct EventConversionStats {
@@ -30,14 +32,23 @@ struct EventConversionStats {
 void eventsFromMsg(const EventArray& msg, EventVector* events, EventConversionStats* stats = nullptr);
 /// Fills msg.events from core events (header and size are the caller's).
 void eventsToMsg(const EventVector& events, EventArray* msg);
+/// A whole EventArray of events[begin, end) with times shifted by epoch_ns; header stamp =
+/// stamp_ns + epoch_ns (or the last event's time when stamp_ns < 0).
+EventArray eventsToMsg(const EventVector& events, size_t begin, size_t end, int width, int height,
+                       const std::string& frame_id, int64_t epoch_ns = 0, int64_t stamp_ns = -1);
 
 /// Calibration from CameraInfo (plumb_bob or an empty D). Throws std::invalid_argument naming
 /// the field if it is unusable (zero focal length, wrong distortion model, ...).
 CameraCalibration calibrationFromMsg(const sensor_msgs::CameraInfo& msg);
-sensor_msgs::CameraInfo calibrationToMsg(const CameraCalibration& calib);
+sensor_msgs::CameraInfo calibrationToMsg(const CameraCalibration& calib, const std::string& frame_id = "");
 
 geometry_msgs::Pose poseToMsg(const Pose3& T);
+/// Throws std::invalid_argument for a zero quaternion.
 Pose3 poseFromMsg(const geometry_msgs::Pose& msg);
+geometry_msgs::Transform transformToMsg(const Pose3& T);
+geometry_msgs::Point pointToMsg(const Vec3& p);
+geometry_msgs::Vector3 vectorToMsg(const Vec3& v);
+geometry_msgs::Quaternion quaternionToMsg(const Quat& q);
 
 AckermannArc arcToMsg(const ArcEstimate& arc, const std::string& frame_id);
 ArcEstimate arcFromMsg(const AckermannArc& msg);

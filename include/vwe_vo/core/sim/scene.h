@@ -1,0 +1,88 @@
+// Textured scenes for the event simulator (axis-aligned boxes and planes: rooms, corridors,
+// streets) and a ray caster that renders linear intensity and depth for every sensor pixel from
+// the camera's per-pixel bearing table (so images are on the distorted sensor).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/math.h"
+#include "vwe_vo/core/sim/texture.h"
+
+namespace vwe_vo {
+namespace sim {
+
+class VehicleTrajectory;
+
+/// An axis-aligned rectangle in odom, seen from both sides. Surface coordinates (u, v) [m]:
+/// normal x -> (y, z), normal y -> (x, z), normal z -> (x, y) (v is the height on walls).
+struct Face {
+  int axis = 2;          // index of the normal axis (0 x, 1 y, 2 z)
+  float plane = 0.f;     // coordinate along the normal [m]
+  float lo[2] = {0, 0};  // lower bounds of (u, v) [m]
+  float hi[2] = {0, 0};  // upper bounds of (u, v) [m]
+  int texture = 0;       // index into Scene::textures
+  float offset[2] = {0, 0};  // texture offset added to (u, v) [m]
+  float gain = 1.f;      // reflectance x illumination factor of the face [-]
+};
+
+struct Scene {
+  std::string name;
+  std::vector<std::shared_ptr<const Texture>> textures;
+  std::vector<Face> faces;
+  float sky_intensity = 0.8f;  // linear intensity of rays that hit nothing (at the horizon) [-]
+
+  /// Adds the faces of the box [min, max] (without the bottom face); returns the first index.
+  size_t addBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max, int texture, float gain, uint64_t seed);
+  /// Adds one rectangle with normal `axis` at `plane` spanning [lo, hi] in its (u, v).
+  size_t addRect(int axis, float plane, Eigen::Vector2f lo, Eigen::Vector2f hi, int texture, float gain, uint64_t seed);
+};
+
+/// Scene kinds: "indoor" (a lab room with furniture and posters), "corridor", "street"
+/// (facades with windows, poles, parked cars). Obstacles keep clear of the trajectory's path.
+/// Throws std::invalid_argument naming the valid kinds for an unknown one.
+Scene buildScene(const std::string& kind, uint64_t seed, const VehicleTrajectory& path);
+std::vector<std::string> sceneKinds();
+
+/// Ray caster over a scene. prepare() culls faces per 16x16 pixel tile for one camera pose;
+/// renderTileRow() may then be called concurrently for different tile rows.
+class SceneRenderer {
+ public:
+  /// supersampling: s x s rays per pixel (1 relies on the filtered texture lookup alone).
+  SceneRenderer(const Scene& scene, const CameraModel& camera, int supersampling = 1);
+
+  void prepare(const Pose3& T_odom_cam);
+  int numTileRows() const { return tiles_y_; }
+  static constexpr int kTile = 16;
+  /// Renders the pixels of one tile row: linear intensity (scene radiance before the global
+  /// illumination factor) and depth z in the camera frame [m] (0 where nothing was hit).
+  /// Output arrays are full images (width * height), row-major; either may be null.
+  void renderTileRow(int tile_row, float* intensity, float* depth) const;
+  /// Convenience: prepare + all tile rows on `threads` threads.
+  void render(const Pose3& T_odom_cam, float* intensity, float* depth, int threads = 1);
+
+ private:
+  struct FaceCam {
+    Face f;
+    const Texture* tex;
+  };
+  const Scene& scene_;
+  const CameraModel& camera_;
+  int ss_;
+  int width_, height_, tiles_x_, tiles_y_;
+  float pixel_angle_;  // approximate angle of one pixel [rad]
+  std::vector<Eigen::Vector3f> rays_;  // ss^2 unit bearings per pixel (camera frame)
+  std::vector<Eigen::Vector4f> tile_bounds_;  // normalised (x/z, y/z) min/max per tile
+  // Per prepared pose:
+  Eigen::Matrix3f R_odom_cam_;
+  Eigen::Vector3f c_odom_;
+  std::vector<std::vector<int>> tile_faces_;
+};
+
+}  // namespace sim
+}  // namespace vwe_vo

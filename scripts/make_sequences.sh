@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Generates the simulator's standard sequences (fixed seeds) into out/sequences/NAME/: an Event
+# Camera Dataset folder plus NAME.bag. A sequence is skipped when its stamp file matches the
+# sequence name, seed and generator version. Usage: scripts/make_sequences.sh [NAME...]
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+set +u  # ROS's setup scripts read unset variables
+# shellcheck disable=SC1091
+source "$ROOT/scripts/ros_env.sh"
+set -u
+BIN="${VWE_WS:-$ROOT/.build/ws}/devel/lib/vwe_vo/vwe_vo_sim"
+VERSION="sim-v1"   # bump when the simulator's output changes
+OUT="$ROOT/out/sequences"
+if [ ! -x "$BIN" ]; then echo "make_sequences: $BIN not built (run make build)" >&2; exit 1; fi
+if [ $# -eq 0 ]; then
+  mapfile -t names < <("$BIN" --list | tail -n +2 | awk '{print $1}')
+else
+  names=("$@")
+fi
+for name in "${names[@]}"; do
+  dir="$OUT/$name"
+  stamp="$dir/.stamp"
+  seed="$("$BIN" --list | awk -v n="$name" '$1 == n {print $4}')"
+  if [ -z "$seed" ]; then "$BIN" --sequence "$name" --format ecd --out /dev/null/x 2>&1 | head -1 >&2; exit 2; fi
+  want="name=$name seed=$seed version=$VERSION"
+  if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && [ -f "$dir/$name.bag" ] && [ -f "$dir/events.txt" ]; then
+    echo "[make_sequences] $name: up to date"
+    continue
+  fi
+  echo "[make_sequences] $name: generating into $dir"
+  rm -rf "$dir"
+  mkdir -p "$dir"
+  "$BIN" --sequence "$name" --format ecd,bag --seed "$seed" --out "$dir" --depth-times 1.0,5.0 2> >(tee "$dir/sim.log" >&2)
+  echo "$want" > "$stamp"
+done

@@ -1,0 +1,261 @@
+#include "vwe_vo/core/sim/event_simulator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <thread>
+
+namespace vwe_vo {
+namespace sim {
+
+void EventSimulatorOptions::validate() const {
+  auto need = [](bool ok, const char* field, const char* what) {
+    if (!ok) throw std::invalid_argument(std::string("EventSimulatorOptions.") + field + " " + what);
+  };
+  need(contrast_threshold > 0.01 && contrast_threshold < 5, "contrast_threshold", "must be in (0.01, 5)");
+  need(threshold_sigma >= 0 && threshold_sigma < contrast_threshold, "threshold_sigma", "must be in [0, contrast_threshold)");
+  need(min_threshold > 0 && min_threshold <= contrast_threshold, "min_threshold", "must be in (0, contrast_threshold]");
+  need(refractory_s >= 0 && refractory_s < 1, "refractory_s", "must be in [0, 1)");
+  need(noise_rate_hz >= 0 && noise_rate_hz < 1e4, "noise_rate_hz", "must be in [0, 1e4)");
+  need(num_hot_pixels >= 0 && num_hot_pixels < 100000, "num_hot_pixels", "must be in [0, 1e5)");
+  need(hot_pixel_rate_hz >= 0 && hot_pixel_rate_hz < 1e5, "hot_pixel_rate_hz", "must be in [0, 1e5)");
+  need(log_eps > 0 && log_eps < 1, "log_eps", "must be in (0, 1)");
+  need(supersampling >= 1 && supersampling <= 4, "supersampling", "must be in [1, 4]");
+  need(max_pixel_motion_px > 0.01 && max_pixel_motion_px <= 10, "max_pixel_motion_px", "must be in (0.01, 10]");
+  need(max_log_step > 0 && max_log_step <= 1, "max_log_step", "must be in (0, 1]");
+  need(min_render_step_s >= 1e-6 && min_render_step_s <= max_render_step_s, "min_render_step_s",
+       "must be in [1e-6, max_render_step_s]");
+  need(max_render_step_s <= 0.1, "max_render_step_s", "must be <= 0.1");
+  need(illumination_low > 0 && illumination_low <= 1, "illumination_low", "must be in (0, 1]");
+  need(illumination_period_s > 0, "illumination_period_s", "must be > 0");
+  need(illumination_ramp_s > 0 && illumination_ramp_s < illumination_period_s, "illumination_ramp_s",
+       "must be in (0, illumination_period_s)");
+  need(dark_noise_rate_hz >= 0 && dark_noise_rate_hz < 1e4, "dark_noise_rate_hz", "must be in [0, 1e4)");
+  need(num_threads >= 1 && num_threads <= 64, "num_threads", "must be in [1, 64]");
+}
+
+EventSimulator::EventSimulator(const Scene& scene, const CameraModel& camera, const Pose3& T_base_cam,
+                               const VehicleTrajectory& trajectory, const EventSimulatorOptions& options)
+    : camera_(camera), scene_(scene), T_base_cam_(T_base_cam), trajectory_(trajectory), options_(options),
+      noise_rng_(options.seed * 0x2545F4914F6CDD1DULL + 99) {
+  options_.validate();
+  renderer_ = std::make_unique<SceneRenderer>(scene_, camera_, options_.supersampling);
+  depth_renderer_ = std::make_unique<SceneRenderer>(scene_, camera_, 1);
+  width_ = camera_.width();
+  height_ = camera_.height();
+  const size_t n = static_cast<size_t>(width_) * height_;
+  intensity_.resize(n);
+  depth_.resize(n);
+  log_prev_.resize(n);
+  log_ref_.resize(n);
+  c_on_.resize(n);
+  c_off_.resize(n);
+  last_event_ns_.assign(n, std::numeric_limits<int64_t>::min() / 2);
+  // Threshold mismatch: fixed per pixel from the seed.
+  std::mt19937_64 rng(options_.seed);
+  std::normal_distribution<double> c(options_.contrast_threshold, options_.threshold_sigma);
+  for (size_t i = 0; i < n; ++i) {
+    c_on_[i] = static_cast<float>(std::max(options_.min_threshold, c(rng)));
+    c_off_[i] = static_cast<float>(std::max(options_.min_threshold, c(rng)));
+  }
+  std::uniform_int_distribution<int> pix(0, static_cast<int>(n) - 1);
+  for (int i = 0; i < options_.num_hot_pixels; ++i) hot_pixels_.push_back(pix(rng));
+  // Initial render: the reference of every pixel is its log intensity at t = 0.
+  renderer_->render(T_odom_cam(0), intensity_.data(), depth_.data(), options_.num_threads);
+  const float log_illum = static_cast<float>(std::log(illumination(0)));
+  for (size_t i = 0; i < n; ++i) {
+    log_prev_[i] = std::log(std::exp(log_illum) * intensity_[i] + static_cast<float>(options_.log_eps));
+    log_ref_[i] = log_prev_[i];
+  }
+  if (options_.supersampling > 1) depth_renderer_->render(T_odom_cam(0), nullptr, depth_.data(), 1);
+  stats_.renders = 1;
+  thread_events_.resize(options_.num_threads);
+  thread_drops_.resize(options_.num_threads);
+}
+
+EventSimulator::~EventSimulator() = default;
+
+double EventSimulator::illumination(int64_t t_ns) const {
+  if (options_.illumination == IlluminationMode::kConstant) return 1.0;
+  const double P = options_.illumination_period_s, R = options_.illumination_ramp_s;
+  const double phase = std::fmod(std::max(0.0, nsToSec(t_ns)), 2.0 * P);
+  // Fraction of the way to dark (0 bright, 1 dark), ramps at the end of each half period.
+  double dark;
+  if (phase < P - R) dark = 0.0;
+  else if (phase < P) dark = (phase - (P - R)) / R;
+  else if (phase < 2 * P - R) dark = 1.0;
+  else dark = 1.0 - (phase - (2 * P - R)) / R;
+  dark = dark * dark * (3.0 - 2.0 * dark);
+  // Exponential ramp: log illumination changes smoothly and at a bounded rate.
+  return std::exp(dark * std::log(options_.illumination_low));
+}
+
+double EventSimulator::noiseRate(int64_t t_ns) const {
+  double rate = options_.noise_rate_hz;
+  if (options_.illumination == IlluminationMode::kToggle && options_.illumination_low < 1.0) {
+    const double darkness = (1.0 - illumination(t_ns)) / (1.0 - options_.illumination_low);
+    rate += options_.dark_noise_rate_hz * std::clamp(darkness, 0.0, 1.0);
+  }
+  return rate;
+}
+
+double EventSimulator::nextStepSec(int64_t t_ns) const {
+  // Camera twist from a 1 ms finite difference of the true pose (includes any vibration).
+  const int64_t h_ns = 1000000;
+  const Pose3 T_c0_c1 = T_odom_cam(t_ns).inverse() * T_odom_cam(t_ns + h_ns);
+  const double h = nsToSec(h_ns);
+  const Eigen::AngleAxisd aa(T_c0_c1.linear());
+  const Eigen::Vector3f w = (aa.axis() * aa.angle() / h).cast<float>();
+  const Eigen::Vector3f v = (T_c0_c1.translation() / h).cast<float>();
+  // Max over a grid of pixels of the bearing's angular speed, converted to pixels.
+  float max_rate = 0.f;
+  for (int y = 4; y < height_; y += 8)
+    for (int x = 4; x < width_; x += 8) {
+      const Eigen::Vector3f& f = camera_.bearing(x, y);
+      const float z = depth_[static_cast<size_t>(y) * width_ + x];
+      Eigen::Vector3f dP = -w.cross(f);
+      if (z > 0) dP -= v * (f.z() / z);  // v / range, range = z / f.z
+      const Eigen::Vector3f df = dP - f * f.dot(dP);
+      max_rate = std::max(max_rate, df.norm() / f.z());
+    }
+  const double px_per_s = max_rate * std::max(camera_.calibration().fx, camera_.calibration().fy);
+  double dt = options_.max_render_step_s;
+  if (px_per_s > 0) dt = std::min(dt, options_.max_pixel_motion_px / px_per_s);
+  if (options_.illumination != IlluminationMode::kConstant) {
+    const double dlog = std::abs(std::log(illumination(t_ns + h_ns)) - std::log(illumination(t_ns))) / h;
+    if (dlog > 0) dt = std::min(dt, options_.max_log_step / dlog);
+  }
+  return std::max(dt, options_.min_render_step_s);
+}
+
+void EventSimulator::processRows(int thread, int threads, int64_t t0_ns, int64_t t1_ns, float log_illum1) {
+  EventVector& ev = thread_events_[thread];
+  uint64_t drops = 0;
+  const float illum1 = std::exp(log_illum1);
+  const float eps = static_cast<float>(options_.log_eps);
+  const int64_t refractory_ns = secToNs(options_.refractory_s);
+  const double span = static_cast<double>(t1_ns - t0_ns);
+  const int tile = SceneRenderer::kTile;
+  for (int r = thread; r < renderer_->numTileRows(); r += threads) {
+    renderer_->renderTileRow(r, intensity_.data(), options_.supersampling > 1 ? nullptr : depth_.data());
+    if (options_.supersampling > 1) depth_renderer_->renderTileRow(r, nullptr, depth_.data());
+    const int y1 = std::min(height_, (r + 1) * tile);
+    for (int y = r * tile; y < y1; ++y)
+      for (int x = 0; x < width_; ++x) {
+        const size_t p = static_cast<size_t>(y) * width_ + x;
+        const float L0 = log_prev_[p];
+        const float L1 = std::log(illum1 * intensity_[p] + eps);
+        log_prev_[p] = L1;
+        float ref = log_ref_[p];
+        const float dL = L1 - L0;
+        if (dL > 0.f) {
+          const float C = c_on_[p];
+          while (L1 - ref >= C) {
+            ref += C;
+            const double a = std::clamp(static_cast<double>((ref - L0) / dL), 0.0, 1.0);
+            const int64_t te = t0_ns + static_cast<int64_t>(a * span + 0.5);
+            if (te - last_event_ns_[p] >= refractory_ns) {
+              ev.push_back(PixelEvent{te, static_cast<uint16_t>(x), static_cast<uint16_t>(y), 1});
+              last_event_ns_[p] = te;
+            } else {
+              ++drops;
+            }
+          }
+        } else if (dL < 0.f) {
+          const float C = c_off_[p];
+          while (ref - L1 >= C) {
+            ref -= C;
+            const double a = std::clamp(static_cast<double>((ref - L0) / dL), 0.0, 1.0);
+            const int64_t te = t0_ns + static_cast<int64_t>(a * span + 0.5);
+            if (te - last_event_ns_[p] >= refractory_ns) {
+              ev.push_back(PixelEvent{te, static_cast<uint16_t>(x), static_cast<uint16_t>(y), -1});
+              last_event_ns_[p] = te;
+            } else {
+              ++drops;
+            }
+          }
+        }
+        log_ref_[p] = ref;
+      }
+  }
+  thread_drops_[thread] = drops;
+}
+
+void EventSimulator::step(int64_t t0_ns, int64_t t1_ns, EventVector* out) {
+  renderer_->prepare(T_odom_cam(t1_ns));
+  if (options_.supersampling > 1) depth_renderer_->prepare(T_odom_cam(t1_ns));
+  const float log_illum1 = static_cast<float>(std::log(illumination(t1_ns)));
+  const int threads = options_.num_threads;
+  for (auto& e : thread_events_) e.clear();
+  std::vector<std::thread> pool;
+  for (int k = 1; k < threads; ++k) pool.emplace_back([=] { processRows(k, threads, t0_ns, t1_ns, log_illum1); });
+  processRows(0, threads, t0_ns, t1_ns, log_illum1);
+  for (auto& t : pool) t.join();
+  ++stats_.renders;
+
+  const size_t first = out->size();
+  size_t n_signal = 0;
+  for (int k = 0; k < threads; ++k) {
+    n_signal += thread_events_[k].size();
+    out->insert(out->end(), thread_events_[k].begin(), thread_events_[k].end());
+    stats_.signal_events += thread_events_[k].size();
+    stats_.refractory_drops += thread_drops_[k];
+  }
+  // Background activity (Poisson in time and uniform over pixels) and hot pixels.
+  const double dt = dtSec(t1_ns, t0_ns);
+  const double mid_rate = noiseRate(t0_ns + (t1_ns - t0_ns) / 2);
+  const size_t n_pix = static_cast<size_t>(width_) * height_;
+  std::poisson_distribution<long> n_noise(mid_rate * static_cast<double>(n_pix) * dt);
+  std::uniform_int_distribution<int64_t> when(t0_ns + 1, t1_ns);
+  std::uniform_int_distribution<size_t> where(0, n_pix - 1);
+  std::bernoulli_distribution on(0.5);
+  const long count = mid_rate > 0 ? n_noise(noise_rng_) : 0;
+  for (long i = 0; i < count; ++i) {
+    const size_t p = where(noise_rng_);
+    out->push_back(PixelEvent{when(noise_rng_), static_cast<uint16_t>(p % width_), static_cast<uint16_t>(p / width_),
+                         static_cast<int8_t>(on(noise_rng_) ? 1 : -1)});
+  }
+  if (!hot_pixels_.empty()) {
+    std::poisson_distribution<long> n_hot(options_.hot_pixel_rate_hz * dt);
+    for (int p : hot_pixels_) {
+      const long k = n_hot(noise_rng_);
+      for (long i = 0; i < k; ++i)
+        out->push_back(PixelEvent{when(noise_rng_), static_cast<uint16_t>(p % width_), static_cast<uint16_t>(p / width_), 1});
+    }
+  }
+  stats_.noise_events += out->size() - first - n_signal;
+  // Deterministic order whatever the thread interleaving: time, then row, column, polarity.
+  std::sort(out->begin() + first, out->end(), [](const PixelEvent& a, const PixelEvent& b) {
+    if (a.t_ns != b.t_ns) return a.t_ns < b.t_ns;
+    if (a.y != b.y) return a.y < b.y;
+    if (a.x != b.x) return a.x < b.x;
+    return a.polarity < b.polarity;
+  });
+}
+
+void EventSimulator::simulateUntil(int64_t t_end_ns, EventVector* out) {
+  if (!out) throw std::invalid_argument("EventSimulator::simulateUntil: null output");
+  while (t_now_ns_ < t_end_ns) {
+    const int64_t dt_ns = std::max<int64_t>(1000, secToNs(nextStepSec(t_now_ns_)));
+    const int64_t t1 = std::min(t_end_ns, t_now_ns_ + dt_ns);
+    step(t_now_ns_, t1, out);
+    t_now_ns_ = t1;
+  }
+}
+
+cv::Mat1f EventSimulator::depthMap(int64_t t_ns) {
+  cv::Mat1f d(height_, width_);
+  depth_renderer_->render(T_odom_cam(t_ns), nullptr, reinterpret_cast<float*>(d.data), options_.num_threads);
+  return d;
+}
+
+cv::Mat1f EventSimulator::intensityImage(int64_t t_ns) {
+  cv::Mat1f img(height_, width_);
+  renderer_->render(T_odom_cam(t_ns), reinterpret_cast<float*>(img.data), nullptr, options_.num_threads);
+  img *= illumination(t_ns);
+  return img;
+}
+
+}  // namespace sim
+}  // namespace vwe_vo

@@ -1,0 +1,76 @@
+// Message <-> core conversions: exact round trips (time in ns, events, calibration, poses).
+#include <gtest/gtest.h>
+
+#include "vwe_vo/ros/conversions.h"
+
+namespace vwe_vo {
+namespace {
+
+TEST(Conversions, TimeRoundTripIsExact) {
+  for (int64_t t : {int64_t(0), int64_t(1), int64_t(999999999), int64_t(1000000000), int64_t(1700000000123456789)}) {
+    EXPECT_EQ(toNs(toRosTime(t)), t);
+  }
+  EXPECT_EQ(toRosTime(1500000001).sec, 1u);
+  EXPECT_EQ(toRosTime(1500000001).nsec, 500000001u);
+  EXPECT_THROW(toRosTime(-1), std::invalid_argument);
+}
+
+TEST(Conversions, EventsRoundTrip) {
+  EventVector ev{{10, 1, 2, 1}, {20, 345, 259, -1}, {30, 0, 0, 1}};
+  const EventArray msg = eventsToMsg(ev, 0, ev.size(), 346, 260, "davis", 1000000000);
+  EXPECT_EQ(msg.width, 346u);
+  EXPECT_EQ(msg.height, 260u);
+  EXPECT_EQ(msg.header.frame_id, "davis");
+  EXPECT_EQ(toNs(msg.header.stamp), 1000000030);
+  EventVector back;
+  EventConversionStats stats;
+  eventsFromMsg(msg, &back, &stats);
+  EXPECT_EQ(stats.dropped, 0u);
+  ASSERT_EQ(back.size(), ev.size());
+  for (size_t i = 0; i < ev.size(); ++i) {
+    EXPECT_EQ(back[i].t_ns, ev[i].t_ns + 1000000000);
+    EXPECT_EQ(back[i].x, ev[i].x);
+    EXPECT_EQ(back[i].y, ev[i].y);
+    EXPECT_EQ(back[i].polarity, ev[i].polarity);
+  }
+  EventArray bad = msg;
+  bad.events[1].x = 400;
+  eventsFromMsg(bad, &back, &stats);
+  EXPECT_EQ(stats.dropped, 1u);
+  EXPECT_EQ(back.size(), 2u);
+}
+
+TEST(Conversions, CameraInfoRoundTrip) {
+  CameraCalibration c;
+  c.width = 346;
+  c.height = 260;
+  c.fx = 255.2;
+  c.fy = 255.0;
+  c.cx = 172.6;
+  c.cy = 129.4;
+  c.distortion = {-0.331, 0.128, 0.0004, -0.0002, 0.0};
+  const sensor_msgs::CameraInfo msg = calibrationToMsg(c, "davis");
+  EXPECT_EQ(msg.distortion_model, "plumb_bob");
+  const CameraCalibration b = calibrationFromMsg(msg);
+  EXPECT_EQ(b.width, 346);
+  EXPECT_DOUBLE_EQ(b.fx, c.fx);
+  EXPECT_DOUBLE_EQ(b.cy, c.cy);
+  EXPECT_DOUBLE_EQ(b.distortion[0], c.distortion[0]);
+  sensor_msgs::CameraInfo bad = msg;
+  bad.distortion_model = "equidistant";
+  EXPECT_THROW(calibrationFromMsg(bad), std::invalid_argument);
+  bad = msg;
+  bad.K[0] = 0;
+  EXPECT_THROW(calibrationFromMsg(bad), std::invalid_argument);
+}
+
+TEST(Conversions, PoseRoundTrip) {
+  const Pose3 T = makePose(Quat(Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized())), Vec3(1, -2, 3));
+  const Pose3 B = poseFromMsg(poseToMsg(T));
+  EXPECT_LT((B.matrix() - T.matrix()).norm(), 1e-12);
+  const geometry_msgs::Transform tf = transformToMsg(T);
+  EXPECT_DOUBLE_EQ(tf.translation.y, -2.0);
+}
+
+}  // namespace
+}  // namespace vwe_vo
