@@ -88,19 +88,26 @@ TEST(AckermannArc, ContinuousThroughZeroOmega) {
 }
 
 TEST(AckermannArc, AccurateOnBothSidesOfTheSeriesSwitch) {
-  // Reference: the closed forms in long double (cancellation ~1e-19 / psi^2 <= 1e-15 here).
+  // Reference: closed forms in long double, 1 - cos x as 2 sin^2(x/2); the remaining
+  // cancellation in x cos x - sin x costs ~1e-19 / x^2 <= 1e-13 relative for |x| >= 1e-3.
   const double v = 2.0, dt = 1.0;
-  for (double psi = 0.02; psi < 0.6; psi += 0.0037) {
-    const long double x = psi;
-    const long double s = std::sin(x), c = std::cos(x);
-    const Vec3 p_ref(double(s / x), double((1 - c) / x), 0.0);
-    const Vec3 dp_domega_ref(double((x * c - s) / (x * x)), double((x * s - (1 - c)) / (x * x)),
-                             0.0);
-    ArcJacobian j;
-    const Pose3 T = arcT_Vr_Vt(psi, v, dt, &j);
-    EXPECT_LT((T.translation() / v - p_ref).norm(), 1e-14 * p_ref.norm()) << psi;
-    EXPECT_LT((j.dp_dv - p_ref).norm(), 1e-14 * p_ref.norm()) << psi;
-    EXPECT_LT((j.dp_domega / v - dp_domega_ref).norm(), 1e-13 * dp_domega_ref.norm()) << psi;
+  for (double mag = 1e-3; mag < 0.6; mag *= 1.07) {
+    for (double psi : {mag, -mag}) {
+      const long double x = psi;
+      const long double s = std::sin(x), c = std::cos(x), h = std::sin(x / 2);
+      const long double omc = 2 * h * h;
+      const Vec3 p_ref(double(s / x), double(omc / x), 0.0);
+      const Vec3 dp_domega_ref(double((x * c - s) / (x * x)), double((x * s - omc) / (x * x)),
+                               0.0);
+      ArcJacobian j;
+      const Pose3 T = arcT_Vr_Vt(psi, v, dt, &j);
+      EXPECT_LT((T.translation() / v - p_ref).norm(), 1e-14 * p_ref.norm()) << psi;
+      EXPECT_LT((j.dp_dv - p_ref).norm(), 1e-14 * p_ref.norm()) << psi;
+      EXPECT_NEAR(j.dp_domega.x() / v, dp_domega_ref.x(), 1e-12 * std::abs(dp_domega_ref.x()))
+          << psi;
+      EXPECT_NEAR(j.dp_domega.y() / v, dp_domega_ref.y(), 1e-13 * std::abs(dp_domega_ref.y()))
+          << psi;
+    }
   }
 }
 
