@@ -75,7 +75,10 @@ BSpline::BSpline(int degree, std::vector<double> knots_s, std::vector<Vec2> cont
 void BSpline::validate() const {
   const int p = degree_;
   const int ncp = numControlPoints();
-  if (p < 1) throw std::invalid_argument("BSpline: degree must be >= 1, got " + std::to_string(p));
+  if (p < 1 || p > kBSplineMaxDegree) {
+    throw std::invalid_argument("BSpline: degree must be in [1, " +
+                                std::to_string(kBSplineMaxDegree) + "], got " + std::to_string(p));
+  }
   if (ncp < p + 1) {
     throw std::invalid_argument("BSpline: " + std::to_string(ncp) +
                                 " control points are too few for degree " + std::to_string(p) +
@@ -185,15 +188,21 @@ int BSpline::findSpan(double u) const {
 BasisDerivatives BSpline::basis(double u, int num_derivs) const {
   const int p = degree_;
   const int i = findSpan(u);
-  const int nd = std::min(std::max(num_derivs, 0), p);
+  if (num_derivs < 0 || num_derivs > kBSplineMaxDegree) {
+    throw std::invalid_argument("BSpline::basis: num_derivs must be in [0, " +
+                                std::to_string(kBSplineMaxDegree) + "], got " +
+                                std::to_string(num_derivs));
+  }
+  const int nd = std::min(num_derivs, p);
   BasisDerivatives out;
   out.first = i - p;
-  out.values = Eigen::MatrixXd::Zero(std::max(num_derivs, 0) + 1, p + 1);
+  out.values.setZero(num_derivs + 1, p + 1);
 
   // ndu: upper triangle basis functions of increasing degree, lower triangle knot differences
   // (all > 0 because knots[i] < knots[i+1]).
-  Eigen::MatrixXd ndu(p + 1, p + 1);
-  Eigen::VectorXd left(p + 1), right(p + 1);
+  constexpr int kMax = kBSplineMaxDegree + 1;
+  Eigen::Matrix<double, kMax, kMax> ndu;
+  Eigen::Matrix<double, kMax, 1> left, right;
   ndu(0, 0) = 1.0;
   for (int j = 1; j <= p; ++j) {
     left(j) = u - knots_[i + 1 - j];
@@ -209,7 +218,7 @@ BasisDerivatives BSpline::basis(double u, int num_derivs) const {
   }
   for (int j = 0; j <= p; ++j) out.values(0, j) = ndu(j, p);
 
-  Eigen::MatrixXd a(2, p + 1);
+  Eigen::Matrix<double, 2, kMax> a;
   for (int r = 0; r <= p; ++r) {
     int s1 = 0, s2 = 1;
     a(0, 0) = 1.0;
@@ -244,7 +253,7 @@ BasisDerivatives BSpline::basis(double u, int num_derivs) const {
 
 Vec2 BSpline::derivative(double u, int order) const {
   if (order < 0) throw std::invalid_argument("BSpline::derivative: negative order");
-  if (order > degree_) return Vec2::Zero();
+  if (order > degree_) return Vec2::Zero();  // also keeps order within basis()'s bound
   const BasisDerivatives b = basis(u, order);
   Vec2 c = Vec2::Zero();
   for (int j = 0; j <= degree_; ++j) c += b.values(order, j) * control_points_[b.first + j];
@@ -300,7 +309,9 @@ BSpline::PoseSource BSpline::poseSource(double u) const {
   }
   const double lo = validFrom(), hi = validTo();
   bool behind_open = behind > lo, ahead_open = ahead < hi;  // false for NaN too
-  for (double h = kTangentSearchStep_s; behind_open || ahead_open; h *= 2.0) {
+  // Doubling steps reach any finite domain end within ~1100 iterations; the cap is a guard.
+  double h = kTangentSearchStep_s;
+  for (int iter = 0; (behind_open || ahead_open) && iter < 2000; ++iter, h *= 2.0) {
     if (behind_open) {
       double ub = behind - h;
       if (ub <= lo) {
@@ -394,8 +405,9 @@ Pose3 BSpline::T_odom_cam(double u, const Pose3& T_base_cam, PoseJacobian* jac) 
 // Fitting
 
 void BSplineFitOptions::validate() const {
-  if (degree < 1) {
-    throw std::invalid_argument("BSplineFitOptions.degree must be >= 1, got " +
+  if (degree < 1 || degree > kBSplineMaxDegree) {
+    throw std::invalid_argument("BSplineFitOptions.degree must be in [1, " +
+                                std::to_string(kBSplineMaxDegree) + "], got " +
                                 std::to_string(degree));
   }
   if (num_control_points != 0 && num_control_points < degree + 1) {

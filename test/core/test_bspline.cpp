@@ -368,6 +368,8 @@ TEST(BSpline, OptionsAndInputsAreValidated) {
   BSplineFitOptions o = ok;
   o.degree = 0;
   expectThrowNaming(o, "degree");
+  o.degree = kBSplineMaxDegree + 1;
+  expectThrowNaming(o, "degree");
   o = ok;
   o.num_control_points = 3;
   expectThrowNaming(o, "num_control_points");
