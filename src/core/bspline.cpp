@@ -85,9 +85,9 @@ void BSpline::validate() const {
                                 " (need >= " + std::to_string(p + 1) + ")");
   }
   if (static_cast<int>(knots_.size()) != ncp + p + 1) {
-    throw std::invalid_argument("BSpline: knots has " + std::to_string(knots_.size()) +
-                                " entries, need control points + degree + 1 = " +
-                                std::to_string(ncp + p + 1));
+    throw std::invalid_argument(
+        "BSpline: knots has " + std::to_string(knots_.size()) +
+        " entries, need control points + degree + 1 = " + std::to_string(ncp + p + 1));
   }
   for (size_t i = 0; i < knots_.size(); ++i) {
     if (!std::isfinite(knots_[i])) {
@@ -107,11 +107,12 @@ void BSpline::validate() const {
   }
 }
 
-std::vector<double> BSpline::clampedUniformKnots(int degree, int num_control_points,
-                                                 double from_s, double to_s) {
+std::vector<double> BSpline::clampedUniformKnots(int degree, int num_control_points, double from_s,
+                                                 double to_s) {
   if (degree < 1 || num_control_points < degree + 1 || !(from_s < to_s)) {
     throw std::invalid_argument("clampedUniformKnots: need degree >= 1 (got " +
-                                std::to_string(degree) + "), num_control_points >= degree + 1 (got " +
+                                std::to_string(degree) +
+                                "), num_control_points >= degree + 1 (got " +
                                 std::to_string(num_control_points) + ") and from_s < to_s");
   }
   const int spans = num_control_points - degree;
@@ -411,9 +412,9 @@ void BSplineFitOptions::validate() const {
                                 std::to_string(degree));
   }
   if (num_control_points != 0 && num_control_points < degree + 1) {
-    throw std::invalid_argument("BSplineFitOptions.num_control_points must be 0 or >= degree + 1 = " +
-                                std::to_string(degree + 1) + ", got " +
-                                std::to_string(num_control_points));
+    throw std::invalid_argument(
+        "BSplineFitOptions.num_control_points must be 0 or >= degree + 1 = " +
+        std::to_string(degree + 1) + ", got " + std::to_string(num_control_points));
   }
   if (!(knot_spacing_s > 0.0) || !std::isfinite(knot_spacing_s)) {
     throw std::invalid_argument("BSplineFitOptions.knot_spacing_s must be > 0, got " +
@@ -431,9 +432,10 @@ std::vector<double> pieglTillerKnots(const std::vector<double>& u, int degree,
   const int n = num_control_points - 1;
   const int m = static_cast<int>(u.size()) - 1;
   if (p < 1 || n < p) {
-    throw std::invalid_argument("pieglTillerKnots: need degree >= 1 and num_control_points >= "
-                                "degree + 1, got degree " + std::to_string(p) + " and " +
-                                std::to_string(num_control_points) + " control points");
+    throw std::invalid_argument(
+        "pieglTillerKnots: need degree >= 1 and num_control_points >= "
+        "degree + 1, got degree " +
+        std::to_string(p) + " and " + std::to_string(num_control_points) + " control points");
   }
   if (m < n) {
     throw std::invalid_argument("pieglTillerKnots: " + std::to_string(m + 1) +
@@ -472,10 +474,10 @@ BSpline fitBSplineWithKnots(const std::vector<int64_t>& t_ns, const std::vector<
   constexpr double kEndTolerance_s = 1e-9;
   if (std::abs(u.front() - spline.validFrom()) > kEndTolerance_s ||
       std::abs(u.back() - spline.validTo()) > kEndTolerance_s) {
-    throw std::invalid_argument(
-        "fitBSplineWithKnots: samples span [" + std::to_string(u.front()) + ", " +
-        std::to_string(u.back()) + "] s but the spline domain is [" +
-        std::to_string(spline.validFrom()) + ", " + std::to_string(spline.validTo()) + "] s");
+    throw std::invalid_argument("fitBSplineWithKnots: samples span [" + std::to_string(u.front()) +
+                                ", " + std::to_string(u.back()) + "] s but the spline domain is [" +
+                                std::to_string(spline.validFrom()) + ", " +
+                                std::to_string(spline.validTo()) + "] s");
   }
 
   std::vector<Vec2> P(ncp);
@@ -503,10 +505,11 @@ BSpline fitBSplineWithKnots(const std::vector<int64_t>& t_ns, const std::vector<
     }
     const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(A);
     if (qr.rank() < n - 1) {
-      throw std::runtime_error("fitBSplineWithKnots: the interior control points are not "
-                               "determined (rank " + std::to_string(qr.rank()) + " of " +
-                               std::to_string(n - 1) +
-                               "): some knot spans hold too few samples");
+      throw std::runtime_error(
+          "fitBSplineWithKnots: the interior control points are not "
+          "determined (rank " +
+          std::to_string(qr.rank()) + " of " + std::to_string(n - 1) +
+          "): some knot spans hold too few samples");
     }
     const Eigen::MatrixXd X = qr.solve(rhs);
     for (int i = 1; i < n; ++i) P[i] = X.row(i - 1).transpose();

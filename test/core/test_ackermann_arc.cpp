@@ -17,7 +17,9 @@ struct Unicycle {
 // RK4 of x' = v cos th, y' = v sin th, th' = omega over dt_s (may be negative).
 Unicycle integrateUnicycle(Unicycle s, double omega, double v, double dt_s, int steps) {
   const double h = dt_s / steps;
-  auto f = [&](const Unicycle& q) { return Unicycle{v * std::cos(q.th), v * std::sin(q.th), omega}; };
+  auto f = [&](const Unicycle& q) {
+    return Unicycle{v * std::cos(q.th), v * std::sin(q.th), omega};
+  };
   auto add = [](const Unicycle& a, const Unicycle& b, double k) {
     return Unicycle{a.x + k * b.x, a.y + k * b.y, a.th + k * b.th};
   };
@@ -31,7 +33,9 @@ Unicycle integrateUnicycle(Unicycle s, double omega, double v, double dt_s, int 
   return s;
 }
 
-Pose3 testExtrinsics() { return makePose(R_base_opticalFrame(), Vec3(0.1, 0.02, 0.3)); }
+Pose3 testExtrinsics() {
+  return makePose(R_base_opticalFrame(), Vec3(0.1, 0.02, 0.3));
+}
 
 // Central differences of (R, p) of f(x) at x.
 void centralDiff(const std::function<Pose3(double)>& f, double x, double h, Mat3* dR, Vec3* dp) {
@@ -97,8 +101,7 @@ TEST(AckermannArc, AccurateOnBothSidesOfTheSeriesSwitch) {
       const long double s = std::sin(x), c = std::cos(x), h = std::sin(x / 2);
       const long double omc = 2 * h * h;
       const Vec3 p_ref(double(s / x), double(omc / x), 0.0);
-      const Vec3 dp_domega_ref(double((x * c - s) / (x * x)), double((x * s - omc) / (x * x)),
-                               0.0);
+      const Vec3 dp_domega_ref(double((x * c - s) / (x * x)), double((x * s - omc) / (x * x)), 0.0);
       ArcJacobian j;
       const Pose3 T = arcT_Vr_Vt(psi, v, dt, &j);
       EXPECT_LT((T.translation() / v - p_ref).norm(), 1e-14 * p_ref.norm()) << psi;

@@ -44,14 +44,14 @@ class BSpline {
   };
 
   BSpline() = default;
-  /// 1 <= degree <= kBSplineMaxDegree, knots_s non-decreasing with control_points.size() + degree + 1 entries and a non-empty
-  /// domain; throws std::invalid_argument naming what is wrong.
+  /// 1 <= degree <= kBSplineMaxDegree, knots_s non-decreasing with control_points.size() + degree +
+  /// 1 entries and a non-empty domain; throws std::invalid_argument naming what is wrong.
   BSpline(int degree, std::vector<double> knots_s, std::vector<Vec2> control_points,
           int64_t epoch_ns);
 
   /// Clamped uniform knots on [from_s, to_s] for num_control_points >= degree + 1.
-  static std::vector<double> clampedUniformKnots(int degree, int num_control_points,
-                                                 double from_s, double to_s);
+  static std::vector<double> clampedUniformKnots(int degree, int num_control_points, double from_s,
+                                                 double to_s);
 
   int degree() const { return degree_; }
   int numControlPoints() const { return static_cast<int>(control_points_.size()); }
