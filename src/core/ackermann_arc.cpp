@@ -32,9 +32,9 @@ ArcShape arcShape(double x) {
   }
   // S = sum (-1)^k x^2k / (2k+1)!,  C = sum (-1)^k x^(2k+1) / (2k+2)!
   const double x2 = x * x;
-  double pw = 1.0;        // x^(2k)
-  double pw_prev = 0.0;   // x^(2k-2)
-  double fact = 1.0;      // (2k+1)!
+  double pw = 1.0;       // x^(2k)
+  double pw_prev = 0.0;  // x^(2k-2)
+  double fact = 1.0;     // (2k+1)!
   double sign = 1.0;
   for (int k = 0; k < kSeriesTerms; ++k) {
     const double fact_next = fact * (2 * k + 2);  // (2k+2)!
@@ -77,8 +77,7 @@ void vehicleToCameraDerivative(const Pose3& T_base_cam, const Mat3& dR_V, const 
   *dp_C = R_cb * (dR_V * T_base_cam.translation() + dp_V);
 }
 
-Pose3 arcT_Cr_Ct(double omega, double v, double dt_s, const Pose3& T_base_cam,
-                 ArcJacobian* jac) {
+Pose3 arcT_Cr_Ct(double omega, double v, double dt_s, const Pose3& T_base_cam, ArcJacobian* jac) {
   ArcJacobian jac_V;
   const Pose3 T_Vr_Vt = arcT_Vr_Vt(omega, v, dt_s, jac ? &jac_V : nullptr);
   if (jac) {
@@ -90,8 +89,7 @@ Pose3 arcT_Cr_Ct(double omega, double v, double dt_s, const Pose3& T_base_cam,
   return vehicleToCamera(T_Vr_Vt, T_base_cam);
 }
 
-Pose3 arcPropagate(const Pose3& T_odom_Vr, int64_t t_ref_ns, double omega, double v,
-                   int64_t t_ns) {
+Pose3 arcPropagate(const Pose3& T_odom_Vr, int64_t t_ref_ns, double omega, double v, int64_t t_ns) {
   return T_odom_Vr * arcT_Vr_Vt(omega, v, dtSec(t_ns, t_ref_ns));
 }
 
@@ -104,11 +102,10 @@ void ArcChain::append(double omega, double v, int64_t t_end_ns) {
     throw std::invalid_argument("ArcChain::append: t_end_ns " + std::to_string(t_end_ns) +
                                 " is before the chain's end time " + std::to_string(t0));
   }
-  const Pose3 T_odom_V0 = segments_.empty() ? T_odom_start_
-                                            : arcPropagate(segments_.back().T_odom_V0,
-                                                           segments_.back().t0_ns,
-                                                           segments_.back().omega,
-                                                           segments_.back().v, t0);
+  const Pose3 T_odom_V0 = segments_.empty()
+                              ? T_odom_start_
+                              : arcPropagate(segments_.back().T_odom_V0, segments_.back().t0_ns,
+                                             segments_.back().omega, segments_.back().v, t0);
   segments_.push_back({t0, t_end_ns, omega, v, T_odom_V0});
 }
 
@@ -139,8 +136,8 @@ void AckermannArcModel::setValidInterval(int64_t valid_from_ns, int64_t valid_to
 
 Pose3 AckermannArcModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
   ArcJacobian arc_jac;
-  const Pose3 T = arcT_Cr_Ct(omega_, v_, dtSec(t_ns, t_ref_ns_), T_base_cam_,
-                             jac ? &arc_jac : nullptr);
+  const Pose3 T =
+      arcT_Cr_Ct(omega_, v_, dtSec(t_ns, t_ref_ns_), T_base_cam_, jac ? &arc_jac : nullptr);
   if (jac) {
     jac->clear();
     jac->add(kOmega, arc_jac.dR_domega, arc_jac.dp_domega);

@@ -75,16 +75,19 @@ BSpline::BSpline(int degree, std::vector<double> knots_s, std::vector<Vec2> cont
 void BSpline::validate() const {
   const int p = degree_;
   const int ncp = numControlPoints();
-  if (p < 1) throw std::invalid_argument("BSpline: degree must be >= 1, got " + std::to_string(p));
+  if (p < 1 || p > kBSplineMaxDegree) {
+    throw std::invalid_argument("BSpline: degree must be in [1, " +
+                                std::to_string(kBSplineMaxDegree) + "], got " + std::to_string(p));
+  }
   if (ncp < p + 1) {
     throw std::invalid_argument("BSpline: " + std::to_string(ncp) +
                                 " control points are too few for degree " + std::to_string(p) +
                                 " (need >= " + std::to_string(p + 1) + ")");
   }
   if (static_cast<int>(knots_.size()) != ncp + p + 1) {
-    throw std::invalid_argument("BSpline: knots has " + std::to_string(knots_.size()) +
-                                " entries, need control points + degree + 1 = " +
-                                std::to_string(ncp + p + 1));
+    throw std::invalid_argument(
+        "BSpline: knots has " + std::to_string(knots_.size()) +
+        " entries, need control points + degree + 1 = " + std::to_string(ncp + p + 1));
   }
   for (size_t i = 0; i < knots_.size(); ++i) {
     if (!std::isfinite(knots_[i])) {
@@ -104,11 +107,12 @@ void BSpline::validate() const {
   }
 }
 
-std::vector<double> BSpline::clampedUniformKnots(int degree, int num_control_points,
-                                                 double from_s, double to_s) {
+std::vector<double> BSpline::clampedUniformKnots(int degree, int num_control_points, double from_s,
+                                                 double to_s) {
   if (degree < 1 || num_control_points < degree + 1 || !(from_s < to_s)) {
     throw std::invalid_argument("clampedUniformKnots: need degree >= 1 (got " +
-                                std::to_string(degree) + "), num_control_points >= degree + 1 (got " +
+                                std::to_string(degree) +
+                                "), num_control_points >= degree + 1 (got " +
                                 std::to_string(num_control_points) + ") and from_s < to_s");
   }
   const int spans = num_control_points - degree;
@@ -185,15 +189,21 @@ int BSpline::findSpan(double u) const {
 BasisDerivatives BSpline::basis(double u, int num_derivs) const {
   const int p = degree_;
   const int i = findSpan(u);
-  const int nd = std::min(std::max(num_derivs, 0), p);
+  if (num_derivs < 0 || num_derivs > kBSplineMaxDegree) {
+    throw std::invalid_argument("BSpline::basis: num_derivs must be in [0, " +
+                                std::to_string(kBSplineMaxDegree) + "], got " +
+                                std::to_string(num_derivs));
+  }
+  const int nd = std::min(num_derivs, p);
   BasisDerivatives out;
   out.first = i - p;
-  out.values = Eigen::MatrixXd::Zero(std::max(num_derivs, 0) + 1, p + 1);
+  out.values.setZero(num_derivs + 1, p + 1);
 
   // ndu: upper triangle basis functions of increasing degree, lower triangle knot differences
   // (all > 0 because knots[i] < knots[i+1]).
-  Eigen::MatrixXd ndu(p + 1, p + 1);
-  Eigen::VectorXd left(p + 1), right(p + 1);
+  constexpr int kMax = kBSplineMaxDegree + 1;
+  Eigen::Matrix<double, kMax, kMax> ndu;
+  Eigen::Matrix<double, kMax, 1> left, right;
   ndu(0, 0) = 1.0;
   for (int j = 1; j <= p; ++j) {
     left(j) = u - knots_[i + 1 - j];
@@ -209,7 +219,7 @@ BasisDerivatives BSpline::basis(double u, int num_derivs) const {
   }
   for (int j = 0; j <= p; ++j) out.values(0, j) = ndu(j, p);
 
-  Eigen::MatrixXd a(2, p + 1);
+  Eigen::Matrix<double, 2, kMax> a;
   for (int r = 0; r <= p; ++r) {
     int s1 = 0, s2 = 1;
     a(0, 0) = 1.0;
@@ -244,7 +254,7 @@ BasisDerivatives BSpline::basis(double u, int num_derivs) const {
 
 Vec2 BSpline::derivative(double u, int order) const {
   if (order < 0) throw std::invalid_argument("BSpline::derivative: negative order");
-  if (order > degree_) return Vec2::Zero();
+  if (order > degree_) return Vec2::Zero();  // also keeps order within basis()'s bound
   const BasisDerivatives b = basis(u, order);
   Vec2 c = Vec2::Zero();
   for (int j = 0; j <= degree_; ++j) c += b.values(order, j) * control_points_[b.first + j];
@@ -300,7 +310,9 @@ BSpline::PoseSource BSpline::poseSource(double u) const {
   }
   const double lo = validFrom(), hi = validTo();
   bool behind_open = behind > lo, ahead_open = ahead < hi;  // false for NaN too
-  for (double h = kTangentSearchStep_s; behind_open || ahead_open; h *= 2.0) {
+  // Doubling steps reach any finite domain end within ~1100 iterations; the cap is a guard.
+  double h = kTangentSearchStep_s;
+  for (int iter = 0; (behind_open || ahead_open) && iter < 2000; ++iter, h *= 2.0) {
     if (behind_open) {
       double ub = behind - h;
       if (ub <= lo) {
@@ -394,14 +406,15 @@ Pose3 BSpline::T_odom_cam(double u, const Pose3& T_base_cam, PoseJacobian* jac) 
 // Fitting
 
 void BSplineFitOptions::validate() const {
-  if (degree < 1) {
-    throw std::invalid_argument("BSplineFitOptions.degree must be >= 1, got " +
+  if (degree < 1 || degree > kBSplineMaxDegree) {
+    throw std::invalid_argument("BSplineFitOptions.degree must be in [1, " +
+                                std::to_string(kBSplineMaxDegree) + "], got " +
                                 std::to_string(degree));
   }
   if (num_control_points != 0 && num_control_points < degree + 1) {
-    throw std::invalid_argument("BSplineFitOptions.num_control_points must be 0 or >= degree + 1 = " +
-                                std::to_string(degree + 1) + ", got " +
-                                std::to_string(num_control_points));
+    throw std::invalid_argument(
+        "BSplineFitOptions.num_control_points must be 0 or >= degree + 1 = " +
+        std::to_string(degree + 1) + ", got " + std::to_string(num_control_points));
   }
   if (!(knot_spacing_s > 0.0) || !std::isfinite(knot_spacing_s)) {
     throw std::invalid_argument("BSplineFitOptions.knot_spacing_s must be > 0, got " +
@@ -419,9 +432,10 @@ std::vector<double> pieglTillerKnots(const std::vector<double>& u, int degree,
   const int n = num_control_points - 1;
   const int m = static_cast<int>(u.size()) - 1;
   if (p < 1 || n < p) {
-    throw std::invalid_argument("pieglTillerKnots: need degree >= 1 and num_control_points >= "
-                                "degree + 1, got degree " + std::to_string(p) + " and " +
-                                std::to_string(num_control_points) + " control points");
+    throw std::invalid_argument(
+        "pieglTillerKnots: need degree >= 1 and num_control_points >= "
+        "degree + 1, got degree " +
+        std::to_string(p) + " and " + std::to_string(num_control_points) + " control points");
   }
   if (m < n) {
     throw std::invalid_argument("pieglTillerKnots: " + std::to_string(m + 1) +
@@ -460,10 +474,10 @@ BSpline fitBSplineWithKnots(const std::vector<int64_t>& t_ns, const std::vector<
   constexpr double kEndTolerance_s = 1e-9;
   if (std::abs(u.front() - spline.validFrom()) > kEndTolerance_s ||
       std::abs(u.back() - spline.validTo()) > kEndTolerance_s) {
-    throw std::invalid_argument(
-        "fitBSplineWithKnots: samples span [" + std::to_string(u.front()) + ", " +
-        std::to_string(u.back()) + "] s but the spline domain is [" +
-        std::to_string(spline.validFrom()) + ", " + std::to_string(spline.validTo()) + "] s");
+    throw std::invalid_argument("fitBSplineWithKnots: samples span [" + std::to_string(u.front()) +
+                                ", " + std::to_string(u.back()) + "] s but the spline domain is [" +
+                                std::to_string(spline.validFrom()) + ", " +
+                                std::to_string(spline.validTo()) + "] s");
   }
 
   std::vector<Vec2> P(ncp);
@@ -491,10 +505,11 @@ BSpline fitBSplineWithKnots(const std::vector<int64_t>& t_ns, const std::vector<
     }
     const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(A);
     if (qr.rank() < n - 1) {
-      throw std::runtime_error("fitBSplineWithKnots: the interior control points are not "
-                               "determined (rank " + std::to_string(qr.rank()) + " of " +
-                               std::to_string(n - 1) +
-                               "): some knot spans hold too few samples");
+      throw std::runtime_error(
+          "fitBSplineWithKnots: the interior control points are not "
+          "determined (rank " +
+          std::to_string(qr.rank()) + " of " + std::to_string(n - 1) +
+          "): some knot spans hold too few samples");
     }
     const Eigen::MatrixXd X = qr.solve(rhs);
     for (int i = 1; i < n; ++i) P[i] = X.row(i - 1).transpose();

@@ -17,7 +17,9 @@ struct Unicycle {
 // RK4 of x' = v cos th, y' = v sin th, th' = omega over dt_s (may be negative).
 Unicycle integrateUnicycle(Unicycle s, double omega, double v, double dt_s, int steps) {
   const double h = dt_s / steps;
-  auto f = [&](const Unicycle& q) { return Unicycle{v * std::cos(q.th), v * std::sin(q.th), omega}; };
+  auto f = [&](const Unicycle& q) {
+    return Unicycle{v * std::cos(q.th), v * std::sin(q.th), omega};
+  };
   auto add = [](const Unicycle& a, const Unicycle& b, double k) {
     return Unicycle{a.x + k * b.x, a.y + k * b.y, a.th + k * b.th};
   };
@@ -31,7 +33,9 @@ Unicycle integrateUnicycle(Unicycle s, double omega, double v, double dt_s, int 
   return s;
 }
 
-Pose3 testExtrinsics() { return makePose(R_base_opticalFrame(), Vec3(0.1, 0.02, 0.3)); }
+Pose3 testExtrinsics() {
+  return makePose(R_base_opticalFrame(), Vec3(0.1, 0.02, 0.3));
+}
 
 // Central differences of (R, p) of f(x) at x.
 void centralDiff(const std::function<Pose3(double)>& f, double x, double h, Mat3* dR, Vec3* dp) {
@@ -88,19 +92,25 @@ TEST(AckermannArc, ContinuousThroughZeroOmega) {
 }
 
 TEST(AckermannArc, AccurateOnBothSidesOfTheSeriesSwitch) {
-  // Reference: the closed forms in long double (cancellation ~1e-19 / psi^2 <= 1e-15 here).
+  // Reference: closed forms in long double, 1 - cos x as 2 sin^2(x/2); the remaining
+  // cancellation in x cos x - sin x costs ~1e-19 / x^2 <= 1e-13 relative for |x| >= 1e-3.
   const double v = 2.0, dt = 1.0;
-  for (double psi = 0.02; psi < 0.6; psi += 0.0037) {
-    const long double x = psi;
-    const long double s = std::sin(x), c = std::cos(x);
-    const Vec3 p_ref(double(s / x), double((1 - c) / x), 0.0);
-    const Vec3 dp_domega_ref(double((x * c - s) / (x * x)), double((x * s - (1 - c)) / (x * x)),
-                             0.0);
-    ArcJacobian j;
-    const Pose3 T = arcT_Vr_Vt(psi, v, dt, &j);
-    EXPECT_LT((T.translation() / v - p_ref).norm(), 1e-14 * p_ref.norm()) << psi;
-    EXPECT_LT((j.dp_dv - p_ref).norm(), 1e-14 * p_ref.norm()) << psi;
-    EXPECT_LT((j.dp_domega / v - dp_domega_ref).norm(), 1e-13 * dp_domega_ref.norm()) << psi;
+  for (double mag = 1e-3; mag < 0.6; mag *= 1.07) {
+    for (double psi : {mag, -mag}) {
+      const long double x = psi;
+      const long double s = std::sin(x), c = std::cos(x), h = std::sin(x / 2);
+      const long double omc = 2 * h * h;
+      const Vec3 p_ref(double(s / x), double(omc / x), 0.0);
+      const Vec3 dp_domega_ref(double((x * c - s) / (x * x)), double((x * s - omc) / (x * x)), 0.0);
+      ArcJacobian j;
+      const Pose3 T = arcT_Vr_Vt(psi, v, dt, &j);
+      EXPECT_LT((T.translation() / v - p_ref).norm(), 1e-14 * p_ref.norm()) << psi;
+      EXPECT_LT((j.dp_dv - p_ref).norm(), 1e-14 * p_ref.norm()) << psi;
+      EXPECT_NEAR(j.dp_domega.x() / v, dp_domega_ref.x(), 1e-12 * std::abs(dp_domega_ref.x()))
+          << psi;
+      EXPECT_NEAR(j.dp_domega.y() / v, dp_domega_ref.y(), 1e-13 * std::abs(dp_domega_ref.y()))
+          << psi;
+    }
   }
 }
 

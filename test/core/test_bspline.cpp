@@ -23,7 +23,8 @@ BSpline knownSpline(int degree = 3) {
   for (int i = 0; i <= degree; ++i) knots.push_back(4.0);
   const int ncp = static_cast<int>(knots.size()) - degree - 1;
   std::vector<Vec2> P;
-  for (int i = 0; i < ncp; ++i) P.emplace_back(1.1 * i + 0.2 * std::cos(i), 0.8 * std::sin(1.3 * i));
+  for (int i = 0; i < ncp; ++i)
+    P.emplace_back(1.1 * i + 0.2 * std::cos(i), 0.8 * std::sin(1.3 * i));
   return BSpline(degree, knots, P, kEpoch);
 }
 
@@ -38,9 +39,13 @@ double coxDeBoor(const std::vector<double>& U, int i, int p, double u) {
   return a + b;
 }
 
-Pose3 testExtrinsics() { return makePose(R_base_opticalFrame(), Vec3(0.1, 0.02, 0.3)); }
+Pose3 testExtrinsics() {
+  return makePose(R_base_opticalFrame(), Vec3(0.1, 0.02, 0.3));
+}
 
-bool isFinitePose(const Pose3& T) { return T.matrix().allFinite(); }
+bool isFinitePose(const Pose3& T) {
+  return T.matrix().allFinite();
+}
 
 // Error of one analytic Jacobian column (dR, dt) against central differences of f.
 double jacobianColumnError(const PoseJacobian& jac, int param,
@@ -220,8 +225,8 @@ TEST(BSpline, HeadingIsTangentToTheCurve) {
 }
 
 TEST(BSpline, StandstillsGiveFinitePosesAndHeldHeadings) {
-  // Control points 3..6 coincide: the curve is exactly still on [knots[7], knots[7]] ... the
-  // interval where only those are active: u in [1.6, 2.0] for these knots.
+  // Control points 3..6 coincide: the curve is exactly still on [1.6, 2.0], where only they
+  // are active.
   std::vector<double> knots = {0, 0, 0, 0, 0.5, 1.0, 1.6, 2.0, 2.6, 3.0, 3.5, 3.5, 3.5, 3.5};
   std::vector<Vec2> P = {{0, 0},     {0.5, 0.1}, {1.0, 0.3}, {1.5, 0.6}, {1.5, 0.6},
                          {1.5, 0.6}, {1.5, 0.6}, {2.0, 1.2}, {2.4, 1.9}, {2.6, 2.8}};
@@ -257,7 +262,8 @@ TEST(BSpline, StandstillsGiveFinitePosesAndHeldHeadings) {
               1e-14);
 
   // A standstill at the start takes its heading from the motion that follows.
-  std::vector<Vec2> P2 = {{0, 0}, {0, 0}, {0, 0}, {0, 0}, {0, 1}, {0, 2}, {0, 3}, {0, 4}, {0, 5}, {0, 6}};
+  std::vector<Vec2> P2 = {{0, 0}, {0, 0}, {0, 0}, {0, 0}, {0, 1},
+                          {0, 2}, {0, 3}, {0, 4}, {0, 5}, {0, 6}};
   BSpline start(3, knots, P2, 0);
   checkAllFinite(start);
   EXPECT_NEAR(start.heading(0.0), kPi / 2, 1e-9);
@@ -367,6 +373,8 @@ TEST(BSpline, OptionsAndInputsAreValidated) {
   EXPECT_NO_THROW(ok.validate());
   BSplineFitOptions o = ok;
   o.degree = 0;
+  expectThrowNaming(o, "degree");
+  o.degree = kBSplineMaxDegree + 1;
   expectThrowNaming(o, "degree");
   o = ok;
   o.num_control_points = 3;

@@ -1,5 +1,6 @@
 // The Ackermann arc: the front-end's 2-DoF motion model (yaw rate omega, speed v), a planar
-// constant-curvature arc of base_link, seen in the vehicle frame or, via the extrinsics, the camera.
+// constant-curvature arc of base_link, seen in the vehicle frame or, via the extrinsics, the
+// camera.
 #pragma once
 
 #include <cstdint>
@@ -36,8 +37,7 @@ void vehicleToCameraDerivative(const Pose3& T_base_cam, const Mat3& dR_V, const 
 
 /// Dead reckoning along one arc: the pose of base_link in odom at t_ns, given its pose
 /// T_odom_Vr at the arc's reference time t_ref_ns.
-Pose3 arcPropagate(const Pose3& T_odom_Vr, int64_t t_ref_ns, double omega, double v,
-                   int64_t t_ns);
+Pose3 arcPropagate(const Pose3& T_odom_Vr, int64_t t_ref_ns, double omega, double v, int64_t t_ns);
 
 /// Dead reckoning along a chain of arcs: starting from T_odom_base at t_start_ns, each
 /// appended arc (omega, v) runs from the previous end time to its own end time. Poses before
@@ -77,7 +77,9 @@ class AckermannArcModel : public TrajectoryModel {
 
   int numParams() const override { return 2; }
   int64_t referenceTime() const override { return t_ref_ns_; }
-  bool covers(int64_t t_ns) const override { return t_ns >= valid_from_ns_ && t_ns <= valid_to_ns_; }
+  bool covers(int64_t t_ns) const override {
+    return t_ns >= valid_from_ns_ && t_ns <= valid_to_ns_;
+  }
   Pose3 T_Cr_Ct(int64_t t_ns, PoseJacobian* jac = nullptr) const override;
 
   double omega() const { return omega_; }

@@ -12,10 +12,15 @@
 
 namespace vwe_vo {
 
+/// Highest supported spline degree (bounds the stack storage of the basis functions).
+constexpr int kBSplineMaxDegree = 7;
+
 /// Basis functions active at a spline time u and their derivatives.
 struct BasisDerivatives {
-  int first = 0;           // index of the first active control point (span - degree)
-  Eigen::MatrixXd values;  // (num_derivs + 1) x (degree + 1): (k, j) = d^k N_{first+j,p} / du^k
+  using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor,
+                               kBSplineMaxDegree + 1, kBSplineMaxDegree + 1>;
+  int first = 0;  // index of the first active control point (span - degree)
+  Matrix values;  // (num_derivs + 1) x (degree + 1): (k, j) = d^k N_{first+j,p} / du^k
 };
 
 /// c(u) = sum_i N_{i,p}(u) P_i, u = spline time [s] relative to the knot epoch (int64 ns).
@@ -39,14 +44,14 @@ class BSpline {
   };
 
   BSpline() = default;
-  /// knots_s non-decreasing with control_points.size() + degree + 1 entries and a non-empty
-  /// domain; throws std::invalid_argument naming what is wrong.
+  /// 1 <= degree <= kBSplineMaxDegree, knots_s non-decreasing with control_points.size() + degree +
+  /// 1 entries and a non-empty domain; throws std::invalid_argument naming what is wrong.
   BSpline(int degree, std::vector<double> knots_s, std::vector<Vec2> control_points,
           int64_t epoch_ns);
 
   /// Clamped uniform knots on [from_s, to_s] for num_control_points >= degree + 1.
-  static std::vector<double> clampedUniformKnots(int degree, int num_control_points,
-                                                 double from_s, double to_s);
+  static std::vector<double> clampedUniformKnots(int degree, int num_control_points, double from_s,
+                                                 double to_s);
 
   int degree() const { return degree_; }
   int numControlPoints() const { return static_cast<int>(control_points_.size()); }
@@ -69,7 +74,8 @@ class BSpline {
   /// [degree, n] (the last span for u >= validTo()).
   int findSpan(double u) const;
   /// Piegl & Tiller A2.3: the degree + 1 non-zero basis functions at u and their derivatives up
-  /// to num_derivs (higher than the degree are zero).
+  /// to num_derivs (0 <= num_derivs <= kBSplineMaxDegree; those above the degree are zero).
+  /// Allocates nothing on the heap.
   BasisDerivatives basis(double u, int num_derivs) const;
 
   /// d^order c / du^order at u.
@@ -120,7 +126,7 @@ class BSpline {
 /// Options of the least-squares fit of a BSpline to timestamped positions.
 struct BSplineFitOptions {
   enum class KnotPlacement { kPieglTiller, kUniform };
-  int degree = 3;               // spline degree p, >= 1
+  int degree = 3;               // spline degree p, in [1, kBSplineMaxDegree]
   int num_control_points = 0;   // n + 1 (>= degree + 1); 0: chosen from knot_spacing_s
   double knot_spacing_s = 0.5;  // target knot span [s] when num_control_points == 0, > 0
   KnotPlacement knot_placement = KnotPlacement::kPieglTiller;
