@@ -5,8 +5,9 @@
 namespace vwe_vo {
 
 VweImageRenderer::VweImageRenderer(const CameraModel& camera, const VolumeOptions& options)
-    : volume_((options.validate(), options), camera.width(), camera.height(), camera.calibration().fx,
-              camera.calibration().fy, camera.calibration().cx, camera.calibration().cy),
+    : volume_((options.validate(), options), camera.width(), camera.height(),
+              camera.calibration().fx, camera.calibration().fy, camera.calibration().cx,
+              camera.calibration().cy),
       objective_(camera, &volume_) {}
 
 cv::Mat VweImageRenderer::maxProjection(const EventVector& events, const TrajectoryModel& model) {

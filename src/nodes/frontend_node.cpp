@@ -1,7 +1,7 @@
 // frontend_node: the Ackermann front-end as a ROS node (see vwe_vo/ros/frontend_node.h).
-#include <ros/ros.h>
-
 #include "vwe_vo/ros/frontend_node.h"
+
+#include <ros/ros.h>
 
 int main(int argc, char** argv) {
   ros::init(argc, argv, "frontend_node");

@@ -1,10 +1,11 @@
 #include "vwe_vo/ros/frontend_node.h"
 
+#include <sensor_msgs/Image.h>
+
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
-
-#include <sensor_msgs/Image.h>
 
 #include "vwe_vo/core/ackermann_arc.h"
 #include "vwe_vo/core/options_yaml.h"
@@ -27,17 +28,21 @@ void FrontendNodeOptions::validate() const {
   if (!std::isfinite(nominal_speed_mps)) fail("~nominal_speed must be finite [m/s]");
 }
 
-FrontendNode::FrontendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh) : nh_(nh), pnh_(pnh) {
+FrontendNode::FrontendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
+    : nh_(nh), pnh_(pnh) {
   readParameters();
   events_sub_ = nh_.subscribe(topics::kEvents, 1000, &FrontendNode::eventsCallback, this);
   camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &FrontendNode::cameraInfoCallback, this);
-  if (node_options_.use_odom) odom_sub_ = nh_.subscribe(topics::kOdom, 200, &FrontendNode::odomCallback, this);
-  if (node_options_.use_imu) imu_sub_ = nh_.subscribe(topics::kImu, 2000, &FrontendNode::imuCallback, this);
+  if (node_options_.use_odom)
+    odom_sub_ = nh_.subscribe(topics::kOdom, 200, &FrontendNode::odomCallback, this);
+  if (node_options_.use_imu)
+    imu_sub_ = nh_.subscribe(topics::kImu, 2000, &FrontendNode::imuCallback, this);
   arcs_pub_ = nh_.advertise<AckermannArc>(topics::kArcs, 100);
   odom_pub_ = nh_.advertise<nav_msgs::Odometry>(topics::kFrontendOdom, 100);
   iwe_pub_ = nh_.advertise<sensor_msgs::Image>(topics::kFrontendIwe, 2);
   if (!have_calibration_)
-    ROS_INFO("frontend_node: waiting for %s (no ~calibration given)", camera_info_sub_.getTopic().c_str());
+    ROS_INFO("frontend_node: waiting for %s (no ~calibration given)",
+             camera_info_sub_.getTopic().c_str());
   worker_ = std::thread(&FrontendNode::workerLoop, this);
 }
 
@@ -76,17 +81,24 @@ void FrontendNode::readParameters() {
   }
 
   const FrontendOptions& f = frontend_options_;
-  ROS_INFO("frontend_node: config %s, calibration %s, nominal_speed %.3f m/s%s, use_odom %d, use_imu %d, "
-           "max_queue_packets %d, max_latency_s %.2f",
-           o.config_path.c_str(), o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(),
-           f.nominal_speed_mps, o.nominal_speed_mps >= 0 ? " (~nominal_speed)" : "", o.use_odom, o.use_imu,
-           o.max_queue_packets, o.max_latency_s);
-  ROS_INFO("frontend_node: windows of %s, %zu events per volume, %d planes in [%.2f, %.2f] m at grid scale %.2f, "
-           "scan +-%.2f rad/s (full +-%.2f), standstill below %.0f ev/s, gyro prior %d",
-           f.window_by_count ? (std::to_string(f.window_events) + " events").c_str()
-                             : (std::to_string(f.window_duration_s) + " s").c_str(),
-           f.max_events_per_volume, f.volume.num_planes, f.volume.z_min_m, f.volume.z_max_m, f.volume.grid_scale,
-           f.scan_half_range_rad_s, f.omega_max_rad_s, f.standstill_event_rate_hz, f.use_gyro_prior);
+  ROS_INFO(
+      "frontend_node: config %s, calibration %s, nominal_speed %.3f m/s%s, use_odom %d, use_imu "
+      "%d, "
+      "max_queue_packets %d, max_latency_s %.2f",
+      o.config_path.c_str(),
+      o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(),
+      f.nominal_speed_mps, o.nominal_speed_mps >= 0 ? " (~nominal_speed)" : "", o.use_odom,
+      o.use_imu, o.max_queue_packets, o.max_latency_s);
+  ROS_INFO(
+      "frontend_node: windows of %s, %zu events per volume, %d planes in [%.2f, %.2f] m at grid "
+      "scale %.2f, "
+      "scan +-%.2f rad/s (full +-%.2f), standstill below %.0f ev/s, gyro prior %d",
+      f.window_by_count
+          ? (std::to_string(f.window_events) + " events").c_str()
+          : (std::to_string(int(std::lround(f.window_duration_s * 1000))) + " ms").c_str(),
+      f.max_events_per_volume, f.volume.num_planes, f.volume.z_min_m, f.volume.z_max_m,
+      f.volume.grid_scale, f.scan_half_range_rad_s, f.omega_max_rad_s, f.standstill_event_rate_hz,
+      f.use_gyro_prior);
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -96,7 +108,8 @@ void FrontendNode::eventsCallback(const EventArray::ConstPtr& msg) {
   ++packets_in_;
   if (msg->events.empty()) {
     ++packets_empty_;
-    ROS_WARN_THROTTLE(10, "frontend_node: empty EventArray ignored (%zu so far)", packets_empty_.load());
+    ROS_WARN_THROTTLE(10, "frontend_node: empty EventArray ignored (%zu so far)",
+                      packets_empty_.load());
     return;
   }
   int width = 0, height = 0;
@@ -111,7 +124,9 @@ void FrontendNode::eventsCallback(const EventArray::ConstPtr& msg) {
   }
   if (int(msg->width) != width || int(msg->height) != height) {
     ++packets_wrong_size_;
-    ROS_ERROR_THROTTLE(5, "frontend_node: EventArray is %ux%u but the calibration is %dx%d: packet refused (%zu so far)",
+    ROS_ERROR_THROTTLE(5,
+                       "frontend_node: EventArray is %ux%u but the calibration is %dx%d: packet "
+                       "refused (%zu so far)",
                        msg->width, msg->height, width, height, packets_wrong_size_.load());
     return;
   }
@@ -120,8 +135,8 @@ void FrontendNode::eventsCallback(const EventArray::ConstPtr& msg) {
   eventsFromMsg(*msg, &input.events, &stats);
   if (stats.dropped > 0) {
     events_outside_msg_ += stats.dropped;
-    ROS_WARN_THROTTLE(10, "frontend_node: %zu events outside the %dx%d sensor dropped (%zu so far)", stats.dropped,
-                      width, height, events_outside_msg_.load());
+    ROS_WARN_THROTTLE(10, "frontend_node: %zu events outside the %dx%d sensor dropped (%zu so far)",
+                      stats.dropped, width, height, events_outside_msg_.load());
   }
   if (input.events.empty()) return;
   enqueue(std::move(input));
@@ -132,9 +147,12 @@ void FrontendNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& m
   if (have_calibration_) {
     if (int(msg->width) != calibration_.width || int(msg->height) != calibration_.height) {
       ++camera_info_refused_;
-      ROS_ERROR_THROTTLE(10, "frontend_node: camera_info is %ux%u but the calibration in use is %dx%d: refused, "
-                         "keeping the first (%zu refused so far)",
-                         msg->width, msg->height, calibration_.width, calibration_.height, camera_info_refused_.load());
+      ROS_ERROR_THROTTLE(
+          10,
+          "frontend_node: camera_info is %ux%u but the calibration in use is %dx%d: refused, "
+          "keeping the first (%zu refused so far)",
+          msg->width, msg->height, calibration_.width, calibration_.height,
+          camera_info_refused_.load());
     }
     return;
   }
@@ -143,16 +161,19 @@ void FrontendNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& m
     calibration = calibrationFromMsg(*msg);
   } catch (const std::invalid_argument& e) {
     ++camera_info_refused_;
-    ROS_WARN_THROTTLE(5, "frontend_node: camera_info refused: %s; still waiting for a valid one (%zu refused so far)",
+    ROS_WARN_THROTTLE(5,
+                      "frontend_node: camera_info refused: %s; still waiting for a valid one (%zu "
+                      "refused so far)",
                       e.what(), camera_info_refused_.load());
     return;
   }
   calibration_ = calibration;
   have_calibration_ = true;
-  ROS_INFO("frontend_node: calibration from camera_info: %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f "
-           "(%zu messages before it ignored)",
-           calibration.width, calibration.height, calibration.fx, calibration.fy, calibration.cx, calibration.cy,
-           inputs_before_calibration_.load());
+  ROS_INFO(
+      "frontend_node: calibration from camera_info: %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f "
+      "(%zu messages before it ignored)",
+      calibration.width, calibration.height, calibration.fx, calibration.fy, calibration.cx,
+      calibration.cy, inputs_before_calibration_.load());
   cv_.notify_all();
 }
 
@@ -188,7 +209,9 @@ bool FrontendNode::enqueue(Input&& input) {
     }
   }
   ++packets_queue_full_;
-  ROS_WARN_THROTTLE(5, "frontend_node: input queue full (%d messages), the front-end cannot keep up: message dropped "
+  ROS_WARN_THROTTLE(5,
+                    "frontend_node: input queue full (%d messages), the front-end cannot keep up: "
+                    "message dropped "
                     "(%zu so far)",
                     node_options_.max_queue_packets, packets_queue_full_.load());
   return false;
@@ -217,7 +240,8 @@ void FrontendNode::workerLoop() {
     std::deque<Input> batch;
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      cv_.wait_for(lock, std::chrono::milliseconds(100), [this] { return stop_ || !queue_.empty(); });
+      cv_.wait_for(lock, std::chrono::milliseconds(100),
+                   [this] { return stop_ || !queue_.empty(); });
       if (stop_) break;
       batch.swap(queue_);
     }
@@ -225,19 +249,28 @@ void FrontendNode::workerLoop() {
       const ros::WallTime start = ros::WallTime::now();
       for (const Input& input : batch) {
         switch (input.kind) {
-          case Input::Kind::kEvents: handleEvents(input.events); break;
-          case Input::Kind::kOdometry: frontend_->addOdometry(input.t_ns, input.v, input.yaw_rate); break;
-          case Input::Kind::kGyro: frontend_->addGyro(input.t_ns, input.yaw_rate); break;
+          case Input::Kind::kEvents:
+            handleEvents(input.events);
+            break;
+          case Input::Kind::kOdometry:
+            frontend_->addOdometry(input.t_ns, input.v, input.yaw_rate);
+            break;
+          case Input::Kind::kGyro:
+            frontend_->addGyro(input.t_ns, input.yaw_rate);
+            break;
         }
       }
-      const double window_s = frontend_options_.window_duration_s;  // by-count windows: an approximation
+      const double window_s =
+          frontend_options_.window_duration_s;  // by-count windows: an approximation
       const double backlog_s = frontend_->pendingWindows() * window_s;
       if (backlog_s > node_options_.max_latency_s) {
         const size_t keep = std::max<size_t>(1, size_t(node_options_.max_latency_s / window_s));
         const size_t dropped = frontend_->dropBacklog(keep);
-        ROS_WARN_THROTTLE(5, "frontend_node: %.2f s of events behind (> ~max_latency_s %.2f): %zu windows skipped "
-                          "(%zu so far)",
-                          backlog_s, node_options_.max_latency_s, dropped, frontend_->stats().windows_dropped);
+        ROS_WARN_THROTTLE(
+            5,
+            "frontend_node: %.2f s of events behind (> ~max_latency_s %.2f): %zu windows skipped "
+            "(%zu so far)",
+            backlog_s, node_options_.max_latency_s, dropped, frontend_->stats().windows_dropped);
       }
       for (const ArcEstimate& arc : frontend_->process()) publishArc(arc);
       busy_wall_s_ += (ros::WallTime::now() - start).toSec();
@@ -251,9 +284,12 @@ void FrontendNode::handleEvents(const EventVector& events) {
   for (const PixelEvent& e : events) oldest = std::min(oldest, e.t_ns);
   const int64_t newest_before = newest_event_ns_;
   if (frontend_->addEvents(events)) {
-    ROS_WARN("frontend_node: event time jumped back by %.3f s (%.3f -> %.3f s; a looped bag?): front-end reset, "
-             "dead reckoning restarts at the identity (reset %zu)",
-             dtSec(newest_before, oldest), nsToSec(newest_before), nsToSec(oldest), frontend_->stats().resets);
+    ROS_WARN(
+        "frontend_node: event time jumped back by %.3f s (%.3f -> %.3f s; a looped bag?): "
+        "front-end reset, "
+        "dead reckoning restarts at the identity (reset %zu)",
+        dtSec(newest_before, oldest), nsToSec(newest_before), nsToSec(oldest),
+        frontend_->stats().resets);
     recent_events_.clear();
     newest_event_ns_ = events.back().t_ns;
   } else {
@@ -261,10 +297,12 @@ void FrontendNode::handleEvents(const EventVector& events) {
   }
   const FrontendStats& stats = frontend_->stats();
   if (stats.events_out_of_order > reported_out_of_order_) {
-    ROS_WARN_THROTTLE(10, "frontend_node: %zu events older than the newest one dropped (time went back by less than "
-                      "%.3f s; %zu so far)",
-                      stats.events_out_of_order - reported_out_of_order_, frontend_options_.max_backwards_jump_s,
-                      stats.events_out_of_order);
+    ROS_WARN_THROTTLE(
+        10,
+        "frontend_node: %zu events older than the newest one dropped (time went back by less than "
+        "%.3f s; %zu so far)",
+        stats.events_out_of_order - reported_out_of_order_, frontend_options_.max_backwards_jump_s,
+        stats.events_out_of_order);
     reported_out_of_order_ = stats.events_out_of_order;
   }
   if (iwe_pub_.getNumSubscribers() == 0) {
@@ -272,18 +310,28 @@ void FrontendNode::handleEvents(const EventVector& events) {
     return;
   }
   if (recent_events_.size() > kMaxRecentEvents)
-    recent_events_.erase(recent_events_.begin(), recent_events_.begin() + recent_events_.size() / 2);
+    recent_events_.erase(recent_events_.begin(),
+                         recent_events_.begin() + recent_events_.size() / 2);
   for (const PixelEvent& e : events)
-    if (camera_->inside(e.x, e.y) && (recent_events_.empty() || e.t_ns >= recent_events_.back().t_ns))
+    if (camera_->inside(e.x, e.y) &&
+        (recent_events_.empty() || e.t_ns >= recent_events_.back().t_ns))
       recent_events_.push_back(e);
 }
 
 void FrontendNode::publishArc(const ArcEstimate& arc) {
   switch (arc.status) {
-    case ArcStatus::kOk: ++windows_ok_; break;
-    case ArcStatus::kStandstill: ++windows_standstill_; break;
-    case ArcStatus::kLost: ++windows_lost_; break;
-    case ArcStatus::kLowEvents: ++windows_low_; break;
+    case ArcStatus::kOk:
+      ++windows_ok_;
+      break;
+    case ArcStatus::kStandstill:
+      ++windows_standstill_;
+      break;
+    case ArcStatus::kLost:
+      ++windows_lost_;
+      break;
+    case ArcStatus::kLowEvents:
+      ++windows_low_;
+      break;
   }
   processed_data_s_ += dtSec(arc.t_end_ns, arc.t_start_ns);
   arcs_pub_.publish(arcToMsg(arc, frames::kBase));
@@ -302,12 +350,14 @@ void FrontendNode::publishArc(const ArcEstimate& arc) {
 
 void FrontendNode::publishImage(const ArcEstimate& arc) {
   const auto by_time = [](const PixelEvent& e, int64_t t) { return e.t_ns < t; };
-  const auto begin = std::lower_bound(recent_events_.begin(), recent_events_.end(), arc.t_start_ns, by_time);
+  const auto begin =
+      std::lower_bound(recent_events_.begin(), recent_events_.end(), arc.t_start_ns, by_time);
   const auto end = std::lower_bound(begin, recent_events_.end(), arc.t_end_ns, by_time);
-  const EventVector window = subsampleEvents(EventVector(begin, end), frontend_options_.max_events_per_volume,
-                                             frontend_options_.seed);
+  const EventVector window = subsampleEvents(
+      EventVector(begin, end), frontend_options_.max_events_per_volume, frontend_options_.seed);
   recent_events_.erase(recent_events_.begin(), end);
-  if (!renderer_) renderer_ = std::make_unique<VweImageRenderer>(*camera_, frontend_options_.volume);
+  if (!renderer_)
+    renderer_ = std::make_unique<VweImageRenderer>(*camera_, frontend_options_.volume);
   const AckermannArcModel model(arc.omega, arc.v, arc.t_ref_ns, T_base_cam_);
   const cv::Mat image = renderer_->render(window, model);
 
@@ -319,7 +369,8 @@ void FrontendNode::publishImage(const ArcEstimate& arc) {
   msg.encoding = "mono8";
   msg.step = uint32_t(image.cols);
   msg.data.resize(size_t(image.rows) * image.cols);
-  for (int y = 0; y < image.rows; ++y) std::copy_n(image.ptr<uint8_t>(y), image.cols, &msg.data[size_t(y) * image.cols]);
+  for (int y = 0; y < image.rows; ++y)
+    std::copy_n(image.ptr<uint8_t>(y), image.cols, &msg.data[size_t(y) * image.cols]);
   iwe_pub_.publish(msg);
 }
 
@@ -327,13 +378,17 @@ void FrontendNode::logStatus() {
   const ros::WallTime now = ros::WallTime::now();
   const double wall_s = std::max(1e-6, (now - last_status_).toSec());
   const FrontendStats& s = frontend_->stats();
-  ROS_INFO("frontend_node: %zu windows (%zu ok, %zu standstill, %zu lost, %zu low events), %zu skipped behind; "
-           "%.0f events/s in, %zu outside the sensor, %zu late; packets %zu (%zu empty, %zu wrong size, %zu queue "
-           "full); %zu resets; real-time factor %.3f",
-           s.windows, windows_ok_, windows_standstill_, windows_lost_, windows_low_, s.windows_dropped,
-           double(s.events_in - last_status_events_) / wall_s, s.events_outside + events_outside_msg_.load(),
-           s.events_out_of_order, packets_in_.load(), packets_empty_.load(), packets_wrong_size_.load(),
-           packets_queue_full_.load(), s.resets, processed_data_s_ > 0 ? busy_wall_s_ / processed_data_s_ : 0.0);
+  ROS_INFO(
+      "frontend_node: %zu windows (%zu ok, %zu standstill, %zu lost, %zu low events), %zu skipped "
+      "behind; "
+      "%.0f events/s in, %zu outside the sensor, %zu late; packets %zu (%zu empty, %zu wrong size, "
+      "%zu queue "
+      "full); %zu resets; real-time factor %.3f",
+      s.windows, windows_ok_, windows_standstill_, windows_lost_, windows_low_, s.windows_dropped,
+      double(s.events_in - last_status_events_) / wall_s,
+      s.events_outside + events_outside_msg_.load(), s.events_out_of_order, packets_in_.load(),
+      packets_empty_.load(), packets_wrong_size_.load(), packets_queue_full_.load(), s.resets,
+      processed_data_s_ > 0 ? busy_wall_s_ / processed_data_s_ : 0.0);
   last_status_ = now;
   last_status_events_ = s.events_in;
 }

@@ -10,7 +10,8 @@ using namespace vwe_vo;
 
 namespace {
 const CameraModel& camera() {
-  static const CameraModel cam(loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+  static const CameraModel cam(
+      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
   return cam;
 }
 double imageVariance(const cv::Mat& m) {
@@ -26,7 +27,8 @@ TEST(VweImage, TrueArcIsSharperThanAWrongOne) {
   const EventVector events = synthetic::randomPointEvents(camera(), truth, 8000, 5, 0.15, 300);
   VweImageRenderer renderer(camera(), VolumeOptions());
   const AckermannArcModel wrong(w + 15.0 / kDegPerRad, 0.4, secToNs(2.0), defaultTBaseCam());
-  const cv::Mat good = renderer.maxProjection(events, truth), bad = renderer.maxProjection(events, wrong);
+  const cv::Mat good = renderer.maxProjection(events, truth),
+                bad = renderer.maxProjection(events, wrong);
   EXPECT_EQ(good.rows, renderer.height());
   EXPECT_EQ(good.cols, renderer.width());
   double max_good = 0, max_bad = 0;

@@ -35,8 +35,8 @@ struct StreamOptions {
   bool outside_events = false;         // add events outside the sensor to every packet
   bool late_packet = false;            // replay one packet 20 ms late (a small backwards jump)
   bool advance_clock = true;           // false: the data is expected to be refused
-  double odom_speed = -1;              // >= 0: also publish /odom (this speed, the true yaw rate) at 50 Hz
-  bool burst = false;                  // publish as fast as possible instead of in real time
+  double odom_speed = -1;  // >= 0: also publish /odom (this speed, the true yaw rate) at 50 Hz
+  bool burst = false;      // publish as fast as possible instead of in real time
 };
 
 class Harness {
@@ -56,8 +56,9 @@ class Harness {
   bool waitForNode(double timeout_s) {
     const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
     while (ros::WallTime::now() < end) {
-      if (events_pub_.getNumSubscribers() > 0 && info_pub_.getNumSubscribers() > 0 && arcs_sub_.getNumPublishers() > 0 &&
-          odom_sub_.getNumPublishers() > 0 && iwe_sub_.getNumPublishers() > 0)
+      if (events_pub_.getNumSubscribers() > 0 && info_pub_.getNumSubscribers() > 0 &&
+          arcs_sub_.getNumPublishers() > 0 && odom_sub_.getNumPublishers() > 0 &&
+          iwe_sub_.getNumPublishers() > 0)
         return true;
       ros::WallDuration(0.05).sleep();
     }
@@ -72,7 +73,9 @@ class Harness {
     }
     ros::WallDuration(0.3).sleep();
   }
-  sensor_msgs::CameraInfo validCameraInfo() const { return calibrationToMsg(camera_.calibration()); }
+  sensor_msgs::CameraInfo validCameraInfo() const {
+    return calibrationToMsg(camera_.calibration());
+  }
 
   /// Publishes duration_s of events along the true arc from the data clock on, in real time.
   /// Returns the data interval [t0, t1).
@@ -82,8 +85,8 @@ class Harness {
     for (int64_t c = t0; c < t1; c += secToNs(1.0)) {  // 1 s chunks, each with its own points
       const double span_s = std::min(1.0, nsToSec(t1 - c));
       const AckermannArcModel truth(kOmega, kV, c + secToNs(span_s / 2), T_base_cam_);
-      const EventVector chunk = synthetic::randomPointEvents(camera_, truth, int(kEventsPerSecond * span_s),
-                                                             unsigned(seed_++), span_s / 2, 600);
+      const EventVector chunk = synthetic::randomPointEvents(
+          camera_, truth, int(kEventsPerSecond * span_s), unsigned(seed_++), span_s / 2, 600);
       for (const PixelEvent& e : chunk)
         if (e.t_ns >= c && e.t_ns < t1 && e.x < o.width && e.y < o.height) events.push_back(e);
     }
@@ -94,7 +97,8 @@ class Harness {
       msg.width = o.width;
       msg.height = o.height;
       EventVector packet;
-      while (i < events.size() && events[i].t_ns < p + secToNs(kPacketS)) packet.push_back(events[i++]);
+      while (i < events.size() && events[i].t_ns < p + secToNs(kPacketS))
+        packet.push_back(events[i++]);
       if (packet.empty()) continue;
       if (o.outside_events)
         for (int k = 0; k < 5; ++k) {
@@ -109,7 +113,8 @@ class Harness {
     }
     ros::WallRate rate(1.0 / kPacketS);
     for (size_t k = 0; k < packets.size(); ++k) {
-      if (o.odom_speed >= 0 && k % 2 == 0) {  // samples covering the next two packets, sent before them
+      if (o.odom_speed >= 0 &&
+          k % 2 == 0) {  // samples covering the next two packets, sent before them
         nav_msgs::Odometry odom;
         odom.header.stamp = toRosTime(t0 + int64_t(k) * secToNs(kPacketS));
         odom.header.frame_id = "odom";
@@ -137,9 +142,11 @@ class Harness {
 
   /// Waits until at least min_count arcs with a reference time in [t0, t1) have arrived (or the
   /// timeout), then a little longer for stragglers; returns them.
-  std::vector<AckermannArc> arcsIn(int64_t t0, int64_t t1, size_t min_count, double timeout_s = 15.0) {
+  std::vector<AckermannArc> arcsIn(int64_t t0, int64_t t1, size_t min_count,
+                                   double timeout_s = 15.0) {
     const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
-    while (ros::WallTime::now() < end && select(t0, t1).size() < min_count) ros::WallDuration(0.05).sleep();
+    while (ros::WallTime::now() < end && select(t0, t1).size() < min_count)
+      ros::WallDuration(0.05).sleep();
     ros::WallDuration(0.5).sleep();
     return select(t0, t1);
   }

@@ -69,7 +69,8 @@ TEST(FrontendNode, EmptyPacketsOutsideEventsAndLateEventsAreCountedNotFatal) {
   EXPECT_GE(arcs.size(), 4u);
   expectTrueArcs(arcs);
   EXPECT_TRUE(harness->logged("empty EventArray ignored", rosgraph_msgs::Log::WARN));
-  EXPECT_TRUE(harness->logged("events outside the 346x260 sensor dropped", rosgraph_msgs::Log::WARN));
+  EXPECT_TRUE(
+      harness->logged("events outside the 346x260 sensor dropped", rosgraph_msgs::Log::WARN));
   EXPECT_TRUE(harness->logged("older than the newest one dropped", rosgraph_msgs::Log::WARN));
 }
 
@@ -81,7 +82,8 @@ TEST(FrontendNode, WrongSizeEventArrayIsRefusedAndValidDataStillWorks) {
   o.height = 180;
   o.advance_clock = false;
   harness->stream(0.7, o);
-  EXPECT_TRUE(harness->logged("EventArray is 240x180 but the calibration is 346x260", rosgraph_msgs::Log::ERROR));
+  EXPECT_TRUE(harness->logged("EventArray is 240x180 but the calibration is 346x260",
+                              rosgraph_msgs::Log::ERROR));
   ros::WallDuration(1.0).sleep();
   EXPECT_EQ(harness->numArcs(), before) << "arcs from refused packets";
   const auto [t0, t1] = harness->stream(1.5);
@@ -97,7 +99,8 @@ TEST(FrontendNode, CameraInfoOfAnotherSizeIsRefusedAndTheFirstKept) {
   other.K[2] = 120;
   other.K[5] = 90;
   harness->publishCameraInfo(other);
-  EXPECT_TRUE(harness->logged("camera_info is 240x180 but the calibration in use is 346x260", rosgraph_msgs::Log::ERROR));
+  EXPECT_TRUE(harness->logged("camera_info is 240x180 but the calibration in use is 346x260",
+                              rosgraph_msgs::Log::ERROR));
   const auto [t0, t1] = harness->stream(1.2);
   const std::vector<AckermannArc> arcs = harness->arcsIn(t0, t1, 3);
   EXPECT_GE(arcs.size(), 3u);

@@ -1,7 +1,13 @@
 // frontend_node: runs the Ackermann front-end on /dvs/events live or from a bag. Callbacks only
 // validate, convert and enqueue into a bounded queue; one worker thread runs vwe_vo::Frontend and
-// publishes one AckermannArc, one dead-reckoned Odometry and (when watched) one VWE image per window.
+// publishes one AckermannArc, one dead-reckoned Odometry and (when watched) one VWE image per
+// window.
 #pragma once
+
+#include <nav_msgs/Odometry.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Imu.h>
 
 #include <atomic>
 #include <condition_variable>
@@ -11,11 +17,6 @@
 #include <mutex>
 #include <string>
 #include <thread>
-
-#include <nav_msgs/Odometry.h>
-#include <ros/ros.h>
-#include <sensor_msgs/CameraInfo.h>
-#include <sensor_msgs/Imu.h>
 
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/core/camera.h"
@@ -27,15 +28,15 @@ namespace vwe_vo {
 
 /// Everything the node reads from the parameter server, once, at start-up.
 struct FrontendNodeOptions {
-  std::string config_path;         // ~config: pipeline YAML (front-end options, T_base_cam)
-  std::string calibration_path;    // ~calibration: CameraInfo-style YAML; empty: /dvs/camera_info
-  double nominal_speed_mps = -1;   // ~nominal_speed: overrides the config when >= 0 [m/s]
-  bool use_odom = false;           // ~use_odom: speed (and standstill) from /odom
-  bool use_imu = false;            // ~use_imu: gyro yaw-rate prior from /dvs/imu
-  int max_queue_packets = 2000;    // ~max_queue_packets: bound of the input queue [messages]
-  double max_latency_s = 1.0;      // ~max_latency_s: backlog beyond this drops whole windows [s]
-  double status_period_s = 10.0;   // ~status_period_s: period of the one-line status [s]
-  void validate() const;           // throws std::invalid_argument naming the parameter
+  std::string config_path;        // ~config: pipeline YAML (front-end options, T_base_cam)
+  std::string calibration_path;   // ~calibration: CameraInfo-style YAML; empty: /dvs/camera_info
+  double nominal_speed_mps = -1;  // ~nominal_speed: overrides the config when >= 0 [m/s]
+  bool use_odom = false;          // ~use_odom: speed (and standstill) from /odom
+  bool use_imu = false;           // ~use_imu: gyro yaw-rate prior from /dvs/imu
+  int max_queue_packets = 2000;   // ~max_queue_packets: bound of the input queue [messages]
+  double max_latency_s = 1.0;     // ~max_latency_s: backlog beyond this drops whole windows [s]
+  double status_period_s = 10.0;  // ~status_period_s: period of the one-line status [s]
+  void validate() const;          // throws std::invalid_argument naming the parameter
 };
 
 class FrontendNode {
@@ -88,18 +89,21 @@ class FrontendNode {
   bool stop_ = false;
 
   // Counted by the callbacks (read by the status line).
-  std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0}, packets_queue_full_{0};
-  std::atomic<size_t> inputs_before_calibration_{0}, events_outside_msg_{0}, camera_info_refused_{0};
+  std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0},
+      packets_queue_full_{0};
+  std::atomic<size_t> inputs_before_calibration_{0}, events_outside_msg_{0},
+      camera_info_refused_{0};
 
   // Owned by the worker thread.
   std::unique_ptr<CameraModel> camera_;
   std::unique_ptr<Frontend> frontend_;
   std::unique_ptr<VweImageRenderer> renderer_;
-  EventVector recent_events_;        // events kept for the VWE image (only while it is watched)
-  int64_t newest_event_ns_ = -1;     // for the size of a backwards jump
+  EventVector recent_events_;     // events kept for the VWE image (only while it is watched)
+  int64_t newest_event_ns_ = -1;  // for the size of a backwards jump
   size_t windows_ok_ = 0, windows_standstill_ = 0, windows_lost_ = 0, windows_low_ = 0;
   size_t reported_out_of_order_ = 0;
-  double busy_wall_s_ = 0.0, processed_data_s_ = 0.0;  // worker time vs data time (real-time factor)
+  double busy_wall_s_ = 0.0,
+         processed_data_s_ = 0.0;  // worker time vs data time (real-time factor)
   ros::WallTime last_status_;
   size_t last_status_events_ = 0;
 

@@ -5,14 +5,14 @@
 namespace vwe_vo {
 namespace topics {
 
-constexpr const char* kEvents = "/dvs/events";                // vwe_vo/EventArray (dvs_msgs-identical)
-constexpr const char* kCameraInfo = "/dvs/camera_info";       // sensor_msgs/CameraInfo
-constexpr const char* kOdom = "/odom";                        // nav_msgs/Odometry (wheel odometry)
-constexpr const char* kImu = "/dvs/imu";                      // sensor_msgs/Imu (camera frame)
-constexpr const char* kArcs = "/vwe/arcs";                    // vwe_vo/AckermannArc per window
-constexpr const char* kFrontendOdom = "/vwe/frontend/odom";   // nav_msgs/Odometry, dead-reckoned
-constexpr const char* kFrontendIwe = "/vwe/frontend/iwe";     // sensor_msgs/Image, sharpened events
-constexpr const char* kTrajectory = "/vwe/trajectory";        // vwe_vo/SplineTrajectory (back-end)
+constexpr const char* kEvents = "/dvs/events";           // vwe_vo/EventArray (dvs_msgs-identical)
+constexpr const char* kCameraInfo = "/dvs/camera_info";  // sensor_msgs/CameraInfo
+constexpr const char* kOdom = "/odom";                   // nav_msgs/Odometry (wheel odometry)
+constexpr const char* kImu = "/dvs/imu";                 // sensor_msgs/Imu (camera frame)
+constexpr const char* kArcs = "/vwe/arcs";               // vwe_vo/AckermannArc per window
+constexpr const char* kFrontendOdom = "/vwe/frontend/odom";  // nav_msgs/Odometry, dead-reckoned
+constexpr const char* kFrontendIwe = "/vwe/frontend/iwe";    // sensor_msgs/Image, sharpened events
+constexpr const char* kTrajectory = "/vwe/trajectory";       // vwe_vo/SplineTrajectory (back-end)
 
 }  // namespace topics
 
