@@ -1,0 +1,113 @@
+// frontend_node: runs the Ackermann front-end on /dvs/events live or from a bag. Callbacks only
+// validate, convert and enqueue into a bounded queue; one worker thread runs vwe_vo::Frontend and
+// publishes one AckermannArc, one dead-reckoned Odometry and (when watched) one VWE image per
+// window.
+#pragma once
+
+#include <nav_msgs/Odometry.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Imu.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "vwe_vo/EventArray.h"
+#include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/frontend.h"
+#include "vwe_vo/core/math.h"
+#include "vwe_vo/core/vwe_image.h"
+
+namespace vwe_vo {
+
+/// Everything the node reads from the parameter server, once, at start-up.
+struct FrontendNodeOptions {
+  std::string config_path;        // ~config: pipeline YAML (front-end options, T_base_cam)
+  std::string calibration_path;   // ~calibration: CameraInfo-style YAML; empty: /dvs/camera_info
+  double nominal_speed_mps = -1;  // ~nominal_speed: overrides the config when >= 0 [m/s]
+  bool use_odom = false;          // ~use_odom: speed (and standstill) from /odom
+  bool use_imu = false;           // ~use_imu: gyro yaw-rate prior from /dvs/imu
+  int max_queue_packets = 2000;   // ~max_queue_packets: bound of the input queue [messages]
+  double max_latency_s = 1.0;     // ~max_latency_s: backlog beyond this drops whole windows [s]
+  double status_period_s = 10.0;  // ~status_period_s: period of the one-line status [s]
+  void validate() const;          // throws std::invalid_argument naming the parameter
+};
+
+class FrontendNode {
+ public:
+  /// Reads the parameters and the configuration (throws std::exception on unusable ones),
+  /// subscribes, advertises and starts the worker.
+  FrontendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh);
+  /// Stops and joins the worker.
+  ~FrontendNode();
+  FrontendNode(const FrontendNode&) = delete;
+  FrontendNode& operator=(const FrontendNode&) = delete;
+
+ private:
+  /// One queued input, converted to core types by a callback.
+  struct Input {
+    enum class Kind { kEvents, kOdometry, kGyro } kind = Kind::kEvents;
+    EventVector events;
+    int64_t t_ns = 0;
+    double v = 0.0, yaw_rate = 0.0;
+  };
+
+  void readParameters();
+  void eventsCallback(const EventArray::ConstPtr& msg);
+  void cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg);
+  void odomCallback(const nav_msgs::Odometry::ConstPtr& msg);
+  void imuCallback(const sensor_msgs::Imu::ConstPtr& msg);
+  /// False (and counted) if the queue is full or there is no calibration yet.
+  bool enqueue(Input&& input);
+
+  void workerLoop();
+  void handleEvents(const EventVector& events);
+  void publishArc(const ArcEstimate& arc);
+  void publishImage(const ArcEstimate& arc);
+  void logStatus();
+
+  ros::NodeHandle nh_, pnh_;
+  ros::Subscriber events_sub_, camera_info_sub_, odom_sub_, imu_sub_;
+  ros::Publisher arcs_pub_, odom_pub_, iwe_pub_;
+
+  FrontendNodeOptions node_options_;
+  FrontendOptions frontend_options_;
+  Pose3 T_base_cam_ = Pose3::Identity();
+
+  // mutex_ guards everything up to the next blank line (queue, calibration, stop flag).
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<Input> queue_;
+  bool have_calibration_ = false;
+  CameraCalibration calibration_;
+  bool stop_ = false;
+
+  // Counted by the callbacks (read by the status line).
+  std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0},
+      packets_queue_full_{0};
+  std::atomic<size_t> inputs_before_calibration_{0}, events_outside_msg_{0},
+      camera_info_refused_{0};
+
+  // Owned by the worker thread.
+  std::unique_ptr<CameraModel> camera_;
+  std::unique_ptr<Frontend> frontend_;
+  std::unique_ptr<VweImageRenderer> renderer_;
+  EventVector recent_events_;     // events kept for the VWE image (only while it is watched)
+  int64_t newest_event_ns_ = -1;  // for the size of a backwards jump
+  size_t windows_ok_ = 0, windows_standstill_ = 0, windows_lost_ = 0, windows_low_ = 0;
+  size_t reported_out_of_order_ = 0;
+  double busy_wall_s_ = 0.0,
+         processed_data_s_ = 0.0;  // worker time vs data time (real-time factor)
+  ros::WallTime last_status_;
+  size_t last_status_events_ = 0;
+
+  std::thread worker_;
+};
+
+}  // namespace vwe_vo

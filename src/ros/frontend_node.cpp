@@ -1,0 +1,396 @@
+#include "vwe_vo/ros/frontend_node.h"
+
+#include <sensor_msgs/Image.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "vwe_vo/core/ackermann_arc.h"
+#include "vwe_vo/core/options_yaml.h"
+#include "vwe_vo/core/vwe_objective.h"
+#include "vwe_vo/ros/conversions.h"
+#include "vwe_vo/ros/topics.h"
+
+namespace vwe_vo {
+
+namespace {
+// Events kept for the VWE image are capped so that a stalled front-end cannot grow them forever.
+constexpr size_t kMaxRecentEvents = 2000000;
+}  // namespace
+
+void FrontendNodeOptions::validate() const {
+  auto fail = [](const std::string& m) { throw std::invalid_argument("frontend_node: " + m); };
+  if (max_queue_packets < 1) fail("~max_queue_packets must be at least 1");
+  if (!(max_latency_s > 0)) fail("~max_latency_s must be positive [s]");
+  if (!(status_period_s > 0)) fail("~status_period_s must be positive [s]");
+  if (!std::isfinite(nominal_speed_mps)) fail("~nominal_speed must be finite [m/s]");
+}
+
+FrontendNode::FrontendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
+    : nh_(nh), pnh_(pnh) {
+  readParameters();
+  events_sub_ = nh_.subscribe(topics::kEvents, 1000, &FrontendNode::eventsCallback, this);
+  camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &FrontendNode::cameraInfoCallback, this);
+  if (node_options_.use_odom)
+    odom_sub_ = nh_.subscribe(topics::kOdom, 200, &FrontendNode::odomCallback, this);
+  if (node_options_.use_imu)
+    imu_sub_ = nh_.subscribe(topics::kImu, 2000, &FrontendNode::imuCallback, this);
+  arcs_pub_ = nh_.advertise<AckermannArc>(topics::kArcs, 100);
+  odom_pub_ = nh_.advertise<nav_msgs::Odometry>(topics::kFrontendOdom, 100);
+  iwe_pub_ = nh_.advertise<sensor_msgs::Image>(topics::kFrontendIwe, 2);
+  if (!have_calibration_)
+    ROS_INFO("frontend_node: waiting for %s (no ~calibration given)",
+             camera_info_sub_.getTopic().c_str());
+  worker_ = std::thread(&FrontendNode::workerLoop, this);
+}
+
+FrontendNode::~FrontendNode() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+void FrontendNode::readParameters() {
+  FrontendNodeOptions& o = node_options_;
+  pnh_.param<std::string>("config", o.config_path, defaultConfigDir() + "/vwe_vo.yaml");
+  pnh_.param<std::string>("calibration", o.calibration_path, "");
+  pnh_.param("nominal_speed", o.nominal_speed_mps, -1.0);
+  pnh_.param("use_odom", o.use_odom, false);
+  pnh_.param("use_imu", o.use_imu, false);
+  pnh_.param("max_queue_packets", o.max_queue_packets, 2000);
+  pnh_.param("max_latency_s", o.max_latency_s, 1.0);
+  pnh_.param("status_period_s", o.status_period_s, 10.0);
+  o.validate();
+
+  const PipelineConfig config = loadPipelineConfig(o.config_path);
+  for (const std::string& w : config.warnings) ROS_WARN("frontend_node: %s", w.c_str());
+  frontend_options_ = config.frontend;
+  if (o.nominal_speed_mps >= 0) frontend_options_.nominal_speed_mps = o.nominal_speed_mps;
+  if (o.use_imu) frontend_options_.use_gyro_prior = true;  // the gyro's only use in the front-end
+  frontend_options_.validate();
+  T_base_cam_ = config.T_base_cam;
+
+  if (!o.calibration_path.empty()) {
+    calibration_ = loadCameraCalibrationYaml(o.calibration_path);  // throws naming file and field
+    have_calibration_ = true;
+  }
+
+  const FrontendOptions& f = frontend_options_;
+  ROS_INFO(
+      "frontend_node: config %s, calibration %s, nominal_speed %.3f m/s%s, use_odom %d, use_imu "
+      "%d, "
+      "max_queue_packets %d, max_latency_s %.2f",
+      o.config_path.c_str(),
+      o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(),
+      f.nominal_speed_mps, o.nominal_speed_mps >= 0 ? " (~nominal_speed)" : "", o.use_odom,
+      o.use_imu, o.max_queue_packets, o.max_latency_s);
+  ROS_INFO(
+      "frontend_node: windows of %s, %zu events per volume, %d planes in [%.2f, %.2f] m at grid "
+      "scale %.2f, "
+      "scan +-%.2f rad/s (full +-%.2f), standstill below %.0f ev/s, gyro prior %d",
+      f.window_by_count
+          ? (std::to_string(f.window_events) + " events").c_str()
+          : (std::to_string(int(std::lround(f.window_duration_s * 1000))) + " ms").c_str(),
+      f.max_events_per_volume, f.volume.num_planes, f.volume.z_min_m, f.volume.z_max_m,
+      f.volume.grid_scale, f.scan_half_range_rad_s, f.omega_max_rad_s, f.standstill_event_rate_hz,
+      f.use_gyro_prior);
+}
+
+// ------------------------------------------------------------------------------------------------
+// Callbacks: validate, convert, enqueue. Nothing here runs the core.
+
+void FrontendNode::eventsCallback(const EventArray::ConstPtr& msg) {
+  ++packets_in_;
+  if (msg->events.empty()) {
+    ++packets_empty_;
+    ROS_WARN_THROTTLE(10, "frontend_node: empty EventArray ignored (%zu so far)",
+                      packets_empty_.load());
+    return;
+  }
+  int width = 0, height = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!have_calibration_) {
+      ++inputs_before_calibration_;
+      return;
+    }
+    width = calibration_.width;
+    height = calibration_.height;
+  }
+  if (int(msg->width) != width || int(msg->height) != height) {
+    ++packets_wrong_size_;
+    ROS_ERROR_THROTTLE(5,
+                       "frontend_node: EventArray is %ux%u but the calibration is %dx%d: packet "
+                       "refused (%zu so far)",
+                       msg->width, msg->height, width, height, packets_wrong_size_.load());
+    return;
+  }
+  Input input;
+  EventConversionStats stats;
+  eventsFromMsg(*msg, &input.events, &stats);
+  if (stats.dropped > 0) {
+    events_outside_msg_ += stats.dropped;
+    ROS_WARN_THROTTLE(10, "frontend_node: %zu events outside the %dx%d sensor dropped (%zu so far)",
+                      stats.dropped, width, height, events_outside_msg_.load());
+  }
+  if (input.events.empty()) return;
+  enqueue(std::move(input));
+}
+
+void FrontendNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (have_calibration_) {
+    if (int(msg->width) != calibration_.width || int(msg->height) != calibration_.height) {
+      ++camera_info_refused_;
+      ROS_ERROR_THROTTLE(
+          10,
+          "frontend_node: camera_info is %ux%u but the calibration in use is %dx%d: refused, "
+          "keeping the first (%zu refused so far)",
+          msg->width, msg->height, calibration_.width, calibration_.height,
+          camera_info_refused_.load());
+    }
+    return;
+  }
+  CameraCalibration calibration;
+  try {
+    calibration = calibrationFromMsg(*msg);
+  } catch (const std::invalid_argument& e) {
+    ++camera_info_refused_;
+    ROS_WARN_THROTTLE(5,
+                      "frontend_node: camera_info refused: %s; still waiting for a valid one (%zu "
+                      "refused so far)",
+                      e.what(), camera_info_refused_.load());
+    return;
+  }
+  calibration_ = calibration;
+  have_calibration_ = true;
+  ROS_INFO(
+      "frontend_node: calibration from camera_info: %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f "
+      "(%zu messages before it ignored)",
+      calibration.width, calibration.height, calibration.fx, calibration.fy, calibration.cx,
+      calibration.cy, inputs_before_calibration_.load());
+  cv_.notify_all();
+}
+
+void FrontendNode::odomCallback(const nav_msgs::Odometry::ConstPtr& msg) {
+  Input input;
+  input.kind = Input::Kind::kOdometry;
+  input.t_ns = toNs(msg->header.stamp);
+  input.v = msg->twist.twist.linear.x;
+  input.yaw_rate = msg->twist.twist.angular.z;
+  enqueue(std::move(input));
+}
+
+void FrontendNode::imuCallback(const sensor_msgs::Imu::ConstPtr& msg) {
+  const Vec3 w_cam(msg->angular_velocity.x, msg->angular_velocity.y, msg->angular_velocity.z);
+  Input input;
+  input.kind = Input::Kind::kGyro;
+  input.t_ns = toNs(msg->header.stamp);
+  input.yaw_rate = (T_base_cam_.linear() * w_cam).z();  // yaw rate of base_link
+  enqueue(std::move(input));
+}
+
+bool FrontendNode::enqueue(Input&& input) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!have_calibration_) {
+      ++inputs_before_calibration_;
+      return false;
+    }
+    if (queue_.size() < size_t(node_options_.max_queue_packets)) {
+      queue_.push_back(std::move(input));
+      cv_.notify_one();
+      return true;
+    }
+  }
+  ++packets_queue_full_;
+  ROS_WARN_THROTTLE(5,
+                    "frontend_node: input queue full (%d messages), the front-end cannot keep up: "
+                    "message dropped "
+                    "(%zu so far)",
+                    node_options_.max_queue_packets, packets_queue_full_.load());
+  return false;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Worker: the only thread that touches the front-end.
+
+void FrontendNode::workerLoop() {
+  CameraCalibration calibration;
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    cv_.wait(lock, [this] { return stop_ || have_calibration_; });
+    if (stop_) return;
+    calibration = calibration_;
+  }
+  try {
+    camera_ = std::make_unique<CameraModel>(calibration);
+    frontend_ = std::make_unique<Frontend>(frontend_options_, *camera_, T_base_cam_);
+  } catch (const std::exception& e) {
+    ROS_ERROR("frontend_node: the front-end cannot start: %s", e.what());
+    return;
+  }
+  last_status_ = ros::WallTime::now();
+  while (true) {
+    std::deque<Input> batch;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait_for(lock, std::chrono::milliseconds(100),
+                   [this] { return stop_ || !queue_.empty(); });
+      if (stop_) break;
+      batch.swap(queue_);
+    }
+    if (!batch.empty()) {
+      const ros::WallTime start = ros::WallTime::now();
+      for (const Input& input : batch) {
+        switch (input.kind) {
+          case Input::Kind::kEvents:
+            handleEvents(input.events);
+            break;
+          case Input::Kind::kOdometry:
+            frontend_->addOdometry(input.t_ns, input.v, input.yaw_rate);
+            break;
+          case Input::Kind::kGyro:
+            frontend_->addGyro(input.t_ns, input.yaw_rate);
+            break;
+        }
+      }
+      const double window_s =
+          frontend_options_.window_duration_s;  // by-count windows: an approximation
+      const double backlog_s = frontend_->pendingWindows() * window_s;
+      if (backlog_s > node_options_.max_latency_s) {
+        const size_t keep = std::max<size_t>(1, size_t(node_options_.max_latency_s / window_s));
+        const size_t dropped = frontend_->dropBacklog(keep);
+        ROS_WARN_THROTTLE(
+            5,
+            "frontend_node: %.2f s of events behind (> ~max_latency_s %.2f): %zu windows skipped "
+            "(%zu so far)",
+            backlog_s, node_options_.max_latency_s, dropped, frontend_->stats().windows_dropped);
+      }
+      for (const ArcEstimate& arc : frontend_->process()) publishArc(arc);
+      busy_wall_s_ += (ros::WallTime::now() - start).toSec();
+    }
+    if ((ros::WallTime::now() - last_status_).toSec() >= node_options_.status_period_s) logStatus();
+  }
+}
+
+void FrontendNode::handleEvents(const EventVector& events) {
+  int64_t oldest = events.front().t_ns;
+  for (const PixelEvent& e : events) oldest = std::min(oldest, e.t_ns);
+  const int64_t newest_before = newest_event_ns_;
+  if (frontend_->addEvents(events)) {
+    ROS_WARN(
+        "frontend_node: event time jumped back by %.3f s (%.3f -> %.3f s; a looped bag?): "
+        "front-end reset, "
+        "dead reckoning restarts at the identity (reset %zu)",
+        dtSec(newest_before, oldest), nsToSec(newest_before), nsToSec(oldest),
+        frontend_->stats().resets);
+    recent_events_.clear();
+    newest_event_ns_ = events.back().t_ns;
+  } else {
+    newest_event_ns_ = std::max(newest_event_ns_, events.back().t_ns);
+  }
+  const FrontendStats& stats = frontend_->stats();
+  if (stats.events_out_of_order > reported_out_of_order_) {
+    ROS_WARN_THROTTLE(
+        10,
+        "frontend_node: %zu events older than the newest one dropped (time went back by less than "
+        "%.3f s; %zu so far)",
+        stats.events_out_of_order - reported_out_of_order_, frontend_options_.max_backwards_jump_s,
+        stats.events_out_of_order);
+    reported_out_of_order_ = stats.events_out_of_order;
+  }
+  if (iwe_pub_.getNumSubscribers() == 0) {
+    recent_events_.clear();
+    return;
+  }
+  if (recent_events_.size() > kMaxRecentEvents)
+    recent_events_.erase(recent_events_.begin(),
+                         recent_events_.begin() + recent_events_.size() / 2);
+  for (const PixelEvent& e : events)
+    if (camera_->inside(e.x, e.y) &&
+        (recent_events_.empty() || e.t_ns >= recent_events_.back().t_ns))
+      recent_events_.push_back(e);
+}
+
+void FrontendNode::publishArc(const ArcEstimate& arc) {
+  switch (arc.status) {
+    case ArcStatus::kOk:
+      ++windows_ok_;
+      break;
+    case ArcStatus::kStandstill:
+      ++windows_standstill_;
+      break;
+    case ArcStatus::kLost:
+      ++windows_lost_;
+      break;
+    case ArcStatus::kLowEvents:
+      ++windows_low_;
+      break;
+  }
+  processed_data_s_ += dtSec(arc.t_end_ns, arc.t_start_ns);
+  arcs_pub_.publish(arcToMsg(arc, frames::kBase));
+
+  nav_msgs::Odometry odom;
+  odom.header.stamp = toRosTime(arc.t_end_ns);
+  odom.header.frame_id = frames::kOdom;
+  odom.child_frame_id = frames::kBase;
+  odom.pose.pose = poseToMsg(frontend_->T_odom_base(arc.t_end_ns));
+  odom.twist.twist.linear.x = arc.v;
+  odom.twist.twist.angular.z = arc.omega;
+  odom_pub_.publish(odom);
+
+  if (iwe_pub_.getNumSubscribers() > 0) publishImage(arc);
+}
+
+void FrontendNode::publishImage(const ArcEstimate& arc) {
+  const auto by_time = [](const PixelEvent& e, int64_t t) { return e.t_ns < t; };
+  const auto begin =
+      std::lower_bound(recent_events_.begin(), recent_events_.end(), arc.t_start_ns, by_time);
+  const auto end = std::lower_bound(begin, recent_events_.end(), arc.t_end_ns, by_time);
+  const EventVector window = subsampleEvents(
+      EventVector(begin, end), frontend_options_.max_events_per_volume, frontend_options_.seed);
+  recent_events_.erase(recent_events_.begin(), end);
+  if (!renderer_)
+    renderer_ = std::make_unique<VweImageRenderer>(*camera_, frontend_options_.volume);
+  const AckermannArcModel model(arc.omega, arc.v, arc.t_ref_ns, T_base_cam_);
+  const cv::Mat image = renderer_->render(window, model);
+
+  sensor_msgs::Image msg;
+  msg.header.stamp = toRosTime(arc.t_ref_ns);
+  msg.header.frame_id = frames::kCamera;
+  msg.height = uint32_t(image.rows);
+  msg.width = uint32_t(image.cols);
+  msg.encoding = "mono8";
+  msg.step = uint32_t(image.cols);
+  msg.data.resize(size_t(image.rows) * image.cols);
+  for (int y = 0; y < image.rows; ++y)
+    std::copy_n(image.ptr<uint8_t>(y), image.cols, &msg.data[size_t(y) * image.cols]);
+  iwe_pub_.publish(msg);
+}
+
+void FrontendNode::logStatus() {
+  const ros::WallTime now = ros::WallTime::now();
+  const double wall_s = std::max(1e-6, (now - last_status_).toSec());
+  const FrontendStats& s = frontend_->stats();
+  ROS_INFO(
+      "frontend_node: %zu windows (%zu ok, %zu standstill, %zu lost, %zu low events), %zu skipped "
+      "behind; "
+      "%.0f events/s in, %zu outside the sensor, %zu late; packets %zu (%zu empty, %zu wrong size, "
+      "%zu queue "
+      "full); %zu resets; real-time factor %.3f",
+      s.windows, windows_ok_, windows_standstill_, windows_lost_, windows_low_, s.windows_dropped,
+      double(s.events_in - last_status_events_) / wall_s,
+      s.events_outside + events_outside_msg_.load(), s.events_out_of_order, packets_in_.load(),
+      packets_empty_.load(), packets_wrong_size_.load(), packets_queue_full_.load(), s.resets,
+      processed_data_s_ > 0 ? busy_wall_s_ / processed_data_s_ : 0.0);
+  last_status_ = now;
+  last_status_events_ = s.events_in;
+}
+
+}  // namespace vwe_vo
