@@ -1,5 +1,7 @@
 #include "vwe_vo/core/evaluation.h"
 
+#include <fstream>
+
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cerrno>
@@ -476,6 +478,79 @@ std::string formatTable(const EvaluationResult& r) {
        << fmt("%.4f", r.scale_drift.max_abs_deviation) << " (" << r.scale_drift.ratios.size()
        << " segments)\n";
   return os.str();
+}
+
+WindowYawRateResult evaluateWindowYawRates(const Trajectory3& gt, const std::vector<WindowYawRate>& windows) {
+  WindowYawRateResult r;
+  for (const WindowYawRate& w : windows) {
+    if (w.standstill) {
+      ++r.standstill_windows;
+      continue;
+    }
+    Pose3 a, b;
+    if (w.t_end_ns <= w.t_start_ns || !interpolateTrajectory(gt, w.t_start_ns, &a) ||
+        !interpolateTrajectory(gt, w.t_end_ns, &b)) {
+      ++r.outside;
+      continue;
+    }
+    const double truth = yawOf(a.linear().transpose() * b.linear()) / dtSec(w.t_end_ns, w.t_start_ns);
+    r.err_deg_s.push_back((w.omega_rad_s - truth) * kDegPerRad);
+  }
+  r.windows = r.err_deg_s.size();
+  std::vector<double> abs_err;
+  for (double e : r.err_deg_s) abs_err.push_back(std::abs(e));
+  r.rmse_deg_s = rmseOf(r.err_deg_s);
+  r.median_abs_deg_s = medianOf(abs_err);
+  r.max_abs_deg_s = abs_err.empty() ? 0.0 : *std::max_element(abs_err.begin(), abs_err.end());
+  return r;
+}
+
+std::vector<WindowYawRate> readArcsCsv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot open " + path);
+  std::string line;
+  if (!std::getline(in, line)) throw std::runtime_error(path + ": empty file");
+  std::vector<std::string> header;
+  std::stringstream hs(line);
+  for (std::string c; std::getline(hs, c, ',');) header.push_back(c);
+  auto column = [&](const std::string& name) {
+    const auto it = std::find(header.begin(), header.end(), name);
+    if (it == header.end()) throw std::runtime_error(path + ":1: no column '" + name + "'");
+    return size_t(it - header.begin());
+  };
+  const size_t c0 = column("t_start"), c1 = column("t_end"), cw = column("omega"), cs = column("status");
+  std::vector<WindowYawRate> out;
+  int line_number = 1;
+  while (std::getline(in, line)) {
+    ++line_number;
+    if (line.empty()) continue;
+    std::vector<std::string> f;
+    std::stringstream ls(line);
+    for (std::string c; std::getline(ls, c, ',');) f.push_back(c);
+    if (f.size() < header.size())
+      throw std::runtime_error(path + ":" + std::to_string(line_number) + ": expected " + std::to_string(header.size()) +
+                               " columns, got " + std::to_string(f.size()));
+    WindowYawRate w;
+    try {
+      w.t_start_ns = secToNs(std::stod(f[c0]));
+      w.t_end_ns = secToNs(std::stod(f[c1]));
+      w.omega_rad_s = std::stod(f[cw]);
+    } catch (const std::exception&) {
+      throw std::runtime_error(path + ":" + std::to_string(line_number) + ": malformed number in '" + line + "'");
+    }
+    w.standstill = f[cs] == "STANDSTILL";
+    out.push_back(w);
+  }
+  return out;
+}
+
+nlohmann::json toJson(const WindowYawRateResult& r) {
+  return {{"windows", r.windows},
+          {"standstill_windows", r.standstill_windows},
+          {"outside_ground_truth", r.outside},
+          {"rmse_deg_s", r.rmse_deg_s},
+          {"median_abs_deg_s", r.median_abs_deg_s},
+          {"max_abs_deg_s", r.max_abs_deg_s}};
 }
 
 }  // namespace vwe_vo

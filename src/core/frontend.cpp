@@ -6,6 +6,57 @@
 
 namespace vwe_vo {
 
+namespace {
+
+/// Maximises f on [a, b] by Brent's method, starting from x0 in (a, b) with f(x0) = f0 known.
+/// Stops when the bracket is narrower than tol (or after max_iter evaluations).
+template <typename F>
+double brentMaximize(F&& f, double a, double b, double x0, double f0, double tol, int max_iter, double* f_best) {
+  const double kGolden = 0.3819660112501051;
+  double x = x0, w = x0, u = x0, fx = -f0, fw = -f0, fv = -f0, v = x0;  // minimise -f
+  double d = 0.0, e = 0.0;
+  for (int it = 0; it < max_iter; ++it) {
+    const double m = 0.5 * (a + b);
+    const double tol1 = 0.5 * tol, tol2 = 2.0 * tol1;
+    if (std::abs(x - m) <= tol2 - 0.5 * (b - a)) break;
+    bool golden = true;
+    if (std::abs(e) > tol1) {
+      const double r = (x - w) * (fx - fv), q0 = (x - v) * (fx - fw);
+      double p = (x - v) * q0 - (x - w) * r, q = 2.0 * (q0 - r);
+      if (q > 0) p = -p;
+      q = std::abs(q);
+      if (std::abs(p) < std::abs(0.5 * q * e) && p > q * (a - x) && p < q * (b - x)) {
+        e = d;
+        d = p / q;
+        u = x + d;
+        if (u - a < tol2 || b - u < tol2) d = x < m ? tol1 : -tol1;
+        golden = false;
+      }
+    }
+    if (golden) {
+      e = (x < m ? b : a) - x;
+      d = kGolden * e;
+    }
+    u = std::abs(d) >= tol1 ? x + d : x + (d > 0 ? tol1 : -tol1);
+    const double fu = -f(u);
+    if (fu <= fx) {
+      (u < x ? b : a) = x;
+      v = w, fv = fw, w = x, fw = fx, x = u, fx = fu;
+    } else {
+      (u < x ? a : b) = u;
+      if (fu <= fw || w == x) {
+        v = w, fv = fw, w = u, fw = fu;
+      } else if (fu <= fv || v == x || v == w) {
+        v = u, fv = fu;
+      }
+    }
+  }
+  *f_best = -fx;
+  return x;
+}
+
+}  // namespace
+
 const char* toString(ArcStatus s) {
   switch (s) {
     case ArcStatus::kOk: return "OK";
@@ -20,8 +71,12 @@ void FrontendOptions::validate() const {
   auto fail = [](const std::string& m) { throw std::invalid_argument("FrontendOptions: " + m); };
   volume.validate();
   if (!(window_duration_s > 0.005 && window_duration_s <= 5.0)) fail("window_duration_s must be in (0.005, 5] s");
+  if (!(window_stride_s >= 0 && window_stride_s <= window_duration_s))
+    fail("window_stride_s must be in [0, window_duration_s] (0: equal to window_duration_s)");
   if (window_by_count && window_events < 100) fail("window_events must be at least 100");
   if (max_events_per_volume < 100) fail("max_events_per_volume must be at least 100");
+  if (subsample_time_slices < 1 || size_t(subsample_time_slices) > max_events_per_volume / 10)
+    fail("subsample_time_slices must be in [1, max_events_per_volume / 10]");
   if (!(std::isfinite(nominal_speed_mps) && nominal_speed_mps >= 0 && nominal_speed_mps < 60))
     fail("nominal_speed_mps must be in [0, 60) m/s");
   if (!(omega_max_rad_s > 0 && omega_max_rad_s <= 10)) fail("omega_max_rad_s must be in (0, 10] rad/s");
@@ -108,8 +163,8 @@ bool Frontend::nextWindow(EventVector* window, int64_t* t0, int64_t* t1) const {
 size_t Frontend::pendingWindows() const {
   if (buffer_.empty() || next_window_start_ns_ < 0) return 0;
   if (options_.window_by_count) return (buffer_.size() - buffer_.lowerBound(next_window_start_ns_)) / (options_.window_events + 1);
-  const double span = dtSec(buffer_.newestTime(), next_window_start_ns_);
-  return span > 0 ? size_t(span / options_.window_duration_s) : 0;
+  const int64_t span = buffer_.newestTime() - next_window_start_ns_ - secToNs(options_.window_duration_s);
+  return span >= 0 ? size_t(span / strideNs()) + 1 : 0;
 }
 
 size_t Frontend::dropBacklog(size_t keep) {
@@ -117,9 +172,7 @@ size_t Frontend::dropBacklog(size_t keep) {
   EventVector unused;
   int64_t t0, t1;
   while (pendingWindows() > keep && nextWindow(nullptr, &t0, &t1)) {
-    next_window_start_ns_ = t1;
-    buffer_.dropBefore(t1);
-    if (chain_) chain_->append(last_omega_, 0.0, t1);  // unknown motion: hold the pose
+    advance(t0, t1, last_omega_, 0.0);  // unknown motion: hold the position
     ++dropped;
   }
   stats_.windows_dropped += dropped;
@@ -182,25 +235,12 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   const bool at_edge = (best_w - range.first < 1.5 * step && range.first > -wmax) ||
                        (range.second - best_w < 1.5 * step && range.second < wmax);
   if (at_edge) range = scan(-wmax, wmax, &best_w, &best_f, &min_f);
-  // Golden-section refinement inside the bracket around the best scan point.
-  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
-  double a = std::max(-wmax, best_w - step), b = std::min(wmax, best_w + step);
-  double c = b - g * (b - a), d = a + g * (b - a);
-  double fc = contrast(events, t_ref_ns, c, v), fd = contrast(events, t_ref_ns, d, v);
-  arc.evaluations += 2;
-  while (b - a > options_.refine_tolerance_rad_s) {
-    if (fc > fd) {
-      b = d, d = c, fd = fc;
-      c = b - g * (b - a);
-      fc = contrast(events, t_ref_ns, c, v);
-    } else {
-      a = c, c = d, fc = fd;
-      d = a + g * (b - a);
-      fd = contrast(events, t_ref_ns, d, v);
-    }
-    ++arc.evaluations;
-  }
-  const double w_ref = fc > fd ? c : d, f_ref = std::max(fc, fd);
+  // Brent's method (parabolic steps, golden-section fallback) inside the bracket around the
+  // best scan point: the objective is smooth there, so it needs a handful of evaluations.
+  double f_ref = best_f;
+  const double w_ref = brentMaximize([&](double w) { ++arc.evaluations; return contrast(events, t_ref_ns, w, v); },
+                                     std::max(-wmax, best_w - step), std::min(wmax, best_w + step), best_w, best_f,
+                                     options_.refine_tolerance_rad_s, 30, &f_ref);
   if (f_ref >= best_f) best_w = w_ref, best_f = f_ref;
   arc.omega = best_w;
   arc.contrast = best_f;
@@ -230,7 +270,8 @@ std::vector<ArcEstimate> Frontend::process() {
       arc.omega = last_omega_;
       arc.v = v;
     } else {
-      const EventVector sub = subsampleEvents(window, options_.max_events_per_volume, options_.seed + stats_.windows);
+      const EventVector sub = subsampleEventsPerTimeSlice(window, t0, t1, options_.max_events_per_volume,
+                                                          options_.subsample_time_slices, options_.seed + stats_.windows);
       double center = lost_ ? 0.0 : last_omega_;
       double half = lost_ ? options_.omega_max_rad_s : options_.scan_half_range_rad_s;
       double gyro = 0.0;
@@ -244,14 +285,56 @@ std::vector<ArcEstimate> Frontend::process() {
     arc.t_end_ns = t1;
     arc.window_events = window.size();
     if (arc.status != ArcStatus::kOk && arc.status != ArcStatus::kLost) arc.num_events = 0;
-    if (!chain_) chain_ = std::make_unique<ArcChain>(Pose3::Identity(), t0);
-    chain_->append(arc.omega, arc.v, t1);
     arcs.push_back(arc);
     ++stats_.windows;
-    next_window_start_ns_ = t1;
-    buffer_.dropBefore(t1);
+    advance(t0, t1, arc.omega, arc.v);
   }
   return arcs;
+}
+
+int64_t Frontend::strideNs() const {
+  return options_.window_stride_s > 0 ? secToNs(options_.window_stride_s) : secToNs(options_.window_duration_s);
+}
+
+void Frontend::advance(int64_t t0, int64_t t1, double omega, double v) {
+  // By count the windows tile the time; by duration a window stands for its middle stride.
+  const int64_t stride = options_.window_by_count ? t1 - t0 : strideNs();
+  const int64_t mid = t0 + (t1 - t0) / 2;
+  if (!chain_) chain_ = std::make_unique<ArcChain>(Pose3::Identity(), mid - stride / 2);
+  chain_->append(omega, v, std::max(chain_->endTime(), mid + stride / 2));
+  next_window_start_ns_ = options_.window_by_count ? t1 : t0 + stride;
+  buffer_.dropBefore(next_window_start_ns_);
+}
+
+Trajectory3 integrateArcs(const std::vector<ArcEstimate>& arcs, int64_t step_ns) {
+  Trajectory3 out;
+  if (arcs.empty() || step_ns <= 0) return out;
+  // Rates at time t: linear between consecutive reference times, constant beyond the ends.
+  size_t k = 0;
+  auto rates = [&](int64_t t, double* omega, double* v) {
+    while (k + 1 < arcs.size() && arcs[k + 1].t_ref_ns <= t) ++k;
+    const ArcEstimate& a = arcs[k];
+    if (t <= a.t_ref_ns || k + 1 >= arcs.size()) {
+      *omega = a.omega, *v = a.v;
+      return;
+    }
+    const ArcEstimate& b = arcs[k + 1];
+    const double s = double(t - a.t_ref_ns) / double(b.t_ref_ns - a.t_ref_ns);
+    *omega = (1 - s) * a.omega + s * b.omega;
+    *v = (1 - s) * a.v + s * b.v;
+  };
+  const int64_t t0 = arcs.front().t_start_ns, t1 = arcs.back().t_end_ns;
+  Pose3 T = Pose3::Identity();
+  out.push_back({t0, T});
+  for (int64_t t = t0; t < t1;) {
+    const int64_t tn = std::min(t1, t + step_ns);
+    double omega, v;
+    rates(t + (tn - t) / 2, &omega, &v);  // midpoint rule: second order in the step
+    T = arcPropagate(T, t, omega, v, tn);
+    out.push_back({tn, T});
+    t = tn;
+  }
+  return out;
 }
 
 Pose3 Frontend::T_odom_base(int64_t t_ns) const { return chain_ ? chain_->T_odom_base(t_ns) : Pose3::Identity(); }

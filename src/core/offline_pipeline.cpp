@@ -47,20 +47,7 @@ void OfflinePipeline::finish() {
   frontend_s_ += secondsSince(t0);
 }
 
-Trajectory3 OfflinePipeline::frontendTrajectory() const {
-  Trajectory3 traj;
-  if (!frontend_.hasPose()) return traj;
-  for (const ArcEstimate& a : arcs_) {
-    if (traj.empty()) traj.push_back({a.t_start_ns, frontend_.T_odom_base(a.t_start_ns)});
-    traj.push_back({a.t_ref_ns, frontend_.T_odom_base(a.t_ref_ns)});
-    traj.push_back({a.t_end_ns, frontend_.T_odom_base(a.t_end_ns)});
-  }
-  // Keep strictly increasing times (t_ref may coincide with a boundary for tiny windows).
-  Trajectory3 out;
-  for (const StampedPose& p : traj)
-    if (out.empty() || p.t_ns > out.back().t_ns) out.push_back(p);
-  return out;
-}
+Trajectory3 OfflinePipeline::frontendTrajectory() const { return integrateArcs(arcs_, secToNs(0.01)); }
 
 void writeArcsCsv(const std::string& path, const std::vector<ArcEstimate>& arcs) {
   FILE* f = std::fopen(path.c_str(), "w");

@@ -76,8 +76,10 @@ void loadOptions(const YAML::Node& node, const std::string& section, FrontendOpt
   if (s.present()) loadOptions(s.node(), "volume", &o->volume, warnings);
   s.get("window_by_count", &o->window_by_count);
   s.get("window_duration_s", &o->window_duration_s);
+  s.get("window_stride_s", &o->window_stride_s);
   s.get("window_events", &o->window_events);
   s.get("max_events_per_volume", &o->max_events_per_volume);
+  s.get("subsample_time_slices", &o->subsample_time_slices);
   s.get("nominal_speed_mps", &o->nominal_speed_mps);
   s.get("omega_max_rad_s", &o->omega_max_rad_s);
   s.get("scan_half_range_rad_s", &o->scan_half_range_rad_s);

@@ -22,6 +22,25 @@ EventVector subsampleEvents(const EventVector& events, size_t max_events, uint64
   return out;
 }
 
+EventVector subsampleEventsPerTimeSlice(const EventVector& events, int64_t t0_ns, int64_t t1_ns, size_t max_events,
+                                        int bins, uint64_t seed) {
+  if (bins <= 1 || t1_ns <= t0_ns) return subsampleEvents(events, max_events, seed);
+  EventVector out;
+  out.reserve(max_events);
+  const size_t per_bin = std::max<size_t>(1, max_events / size_t(bins));
+  size_t begin = 0;
+  for (int b = 0; b < bins; ++b) {
+    const int64_t edge = t0_ns + (t1_ns - t0_ns) * (b + 1) / bins;
+    size_t end = begin;
+    while (end < events.size() && (events[end].t_ns < edge || b == bins - 1)) ++end;
+    const EventVector slice(events.begin() + begin, events.begin() + end);
+    const EventVector kept = subsampleEvents(slice, per_bin, seed + uint64_t(b));
+    out.insert(out.end(), kept.begin(), kept.end());
+    begin = end;
+  }
+  return out;
+}
+
 VweObjective::VweObjective(const CameraModel& camera, ProjectiveVolume* volume) : camera_(camera), volume_(volume) {}
 
 VweEvaluation VweObjective::buildRays(const EventVector& events, const TrajectoryModel& model, bool with_jacobian) {

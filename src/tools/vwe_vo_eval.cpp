@@ -14,7 +14,7 @@ namespace {
 const char* kUsage =
     "usage: vwe_vo_eval --gt GT.tum --est EST.tum [--delta 1.0] [--json OUT.json] [--series "
     "OUT.csv]\n"
-    "                   [--segment 10]\n"
+    "                   [--segment 10] [--arcs ARCS.csv]\n"
     "  --gt FILE       ground-truth TUM trajectory (t px py pz qx qy qz qw)\n"
     "  --est FILE      estimated TUM trajectory\n"
     "  --delta S       relative pose error interval in seconds (default 1.0; 0.5 s is also "
@@ -22,6 +22,7 @@ const char* kUsage =
     "  --json FILE     write the metrics as JSON\n"
     "  --series FILE   write the per-pair errors as CSV (for scripts/plot_trajectory.py)\n"
     "  --segment M     ground-truth distance per scale-drift segment in metres (default 10)\n"
+    "  --arcs FILE     also score the front-end's arcs.csv: yaw rate per window vs ground truth\n"
     "  --help          this text\n";
 
 double parsePositive(const std::string& option, const std::string& text) {
@@ -40,7 +41,7 @@ double parsePositive(const std::string& option, const std::string& text) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string gt_path, est_path, json_path, series_path;
+  std::string gt_path, est_path, json_path, series_path, arcs_path;
   vwe_vo::EvaluationOptions options;
   try {
     for (int i = 1; i < argc; ++i) {
@@ -50,7 +51,7 @@ int main(int argc, char** argv) {
         return 0;
       }
       if (arg != "--gt" && arg != "--est" && arg != "--delta" && arg != "--json" &&
-          arg != "--series" && arg != "--segment")
+          arg != "--series" && arg != "--segment" && arg != "--arcs")
         throw std::invalid_argument("unknown option '" + arg + "'");
       if (i + 1 >= argc) throw std::invalid_argument(arg + " needs a value");
       const std::string value = argv[++i];
@@ -62,6 +63,8 @@ int main(int argc, char** argv) {
         json_path = value;
       else if (arg == "--series")
         series_path = value;
+      else if (arg == "--arcs")
+        arcs_path = value;
       else if (arg == "--delta")
         options.delta_s = parsePositive(arg, value);
       else
@@ -81,9 +84,16 @@ int main(int argc, char** argv) {
     const vwe_vo::EvaluationResult result = vwe_vo::evaluate(gt, est, options);
     std::cout << "vwe_vo_eval: " << est_path << " against " << gt_path << "\n"
               << vwe_vo::formatTable(result);
+    nlohmann::json j = vwe_vo::toJson(result);
+    if (!arcs_path.empty()) {
+      const vwe_vo::WindowYawRateResult w = vwe_vo::evaluateWindowYawRates(gt, vwe_vo::readArcsCsv(arcs_path));
+      std::printf("  window yaw rate (arcs)        RMSE %.3f deg/s, median |err| %.3f, max %.3f (%zu windows, %zu standstill)\n",
+                  w.rmse_deg_s, w.median_abs_deg_s, w.max_abs_deg_s, w.windows, w.standstill_windows);
+      j["window_yaw_rate"] = vwe_vo::toJson(w);
+    }
     if (!json_path.empty()) {
       std::ofstream out(json_path);
-      out << vwe_vo::toJson(result).dump(2) << "\n";
+      out << j.dump(2) << "\n";
       if (!out) throw std::runtime_error("cannot write " + json_path);
     }
     if (!series_path.empty()) vwe_vo::writeSeriesCsv(series_path, result);

@@ -101,6 +101,24 @@ EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est,
 /// JSON with the keys of DESIGN.md "Interfaces"; NaN becomes null. "series" only if with_series.
 nlohmann::json toJson(const EvaluationResult& result, bool with_series = false);
 
+/// A front-end window: its interval and the yaw rate estimated for it.
+struct WindowYawRate {
+  int64_t t_start_ns = 0, t_end_ns = 0;
+  double omega_rad_s = 0.0;
+  bool standstill = false;  // reported as standstill: excluded, counted
+};
+/// Yaw-rate error per window (DESIGN "yaw-rate RMSE at window times"): the estimate against
+/// the ground truth's mean yaw rate over the same window, (yaw(t_end) - yaw(t_start)) / length.
+struct WindowYawRateResult {
+  size_t windows = 0, standstill_windows = 0, outside = 0;
+  double rmse_deg_s = 0.0, median_abs_deg_s = 0.0, max_abs_deg_s = 0.0;
+  std::vector<double> err_deg_s;  // per evaluated window
+};
+WindowYawRateResult evaluateWindowYawRates(const Trajectory3& gt, const std::vector<WindowYawRate>& windows);
+/// Reads the front-end's arcs.csv (columns t_start, t_end, omega, status by header name).
+std::vector<WindowYawRate> readArcsCsv(const std::string& path);
+nlohmann::json toJson(const WindowYawRateResult& result);
+
 /// CSV of the main RPE series: `t_s,rot_err_deg_s,trans_dir_err_deg_s,yaw_rate_err_deg_s`
 /// (t_s = pair start since the first ground-truth pose, nan where left out). Throws on I/O error.
 void writeSeriesCsv(const std::string& path, const EvaluationResult& result);

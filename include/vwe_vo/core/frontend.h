@@ -13,6 +13,7 @@
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/events.h"
 #include "vwe_vo/core/projective_volume.h"
+#include "vwe_vo/core/trajectory_io.h"
 #include "vwe_vo/core/vwe_objective.h"
 
 namespace vwe_vo {
@@ -21,11 +22,19 @@ enum class ArcStatus : uint8_t { kOk = 0, kStandstill = 1, kLost = 2, kLowEvents
 const char* toString(ArcStatus s);
 
 struct FrontendOptions {
-  VolumeOptions volume;                    // the VWE grid of every window
+  VolumeOptions volume = defaultVolume();  // the VWE grid of every window
+  static VolumeOptions defaultVolume() {
+    VolumeOptions v;
+    v.grid_scale = 1.0;  // full resolution: half resolution biases slow, straight driving
+    v.num_planes = 30;
+    return v;
+  }
   bool window_by_count = false;            // windows of window_events events instead of a duration
   double window_duration_s = 0.3;          // window length when by duration [s]
+  double window_stride_s = 0.0;            // start-to-start spacing of windows by duration [s]; 0: no overlap
   size_t window_events = 60000;            // window size when by count [events]
   size_t max_events_per_volume = 8000;     // events voted per window (uniform subsampling)
+  int subsample_time_slices = 10;          // equal budget per time slice of the window (1: by count)
   double nominal_speed_mps = 0.3;          // v when no odometry is given [m/s]
   double omega_max_rad_s = 1.2;            // |omega| bound of the full scan [rad/s]
   double scan_half_range_rad_s = 0.15;     // scan around the previous omega [rad/s]
@@ -52,6 +61,13 @@ struct ArcEstimate {
   ArcStatus status = ArcStatus::kOk;
   int evaluations = 0;          // objective evaluations spent
 };
+
+/// Dead reckoning through the arcs with omega and v interpolated linearly between the arcs'
+/// reference times (each arc estimates the mean rate over its window, i.e. the rate at its
+/// middle), integrated in steps of step_ns. Poses of base_link in odom from the identity at the
+/// first arc's start to the last arc's end. Follows ramps in the yaw rate that a chain of
+/// constant arcs would turn into steps.
+Trajectory3 integrateArcs(const std::vector<ArcEstimate>& arcs, int64_t step_ns);
 
 struct FrontendStats {
   size_t events_in = 0, events_outside = 0, events_out_of_order = 0;
@@ -94,6 +110,10 @@ class Frontend {
 
  private:
   bool nextWindow(EventVector* window, int64_t* t0, int64_t* t1) const;
+  int64_t strideNs() const;
+  /// Moves to the next window after [t0, t1) and extends the dead reckoning over the part of
+  /// time this window stands for (its middle stride).
+  void advance(int64_t t0, int64_t t1, double omega, double v);
   double speedAt(int64_t t0_ns, int64_t t1_ns, bool* standstill) const;
   bool gyroAt(int64_t t0_ns, int64_t t1_ns, double* yaw_rate) const;
 

@@ -26,7 +26,7 @@ class OfflinePipeline {
   void finish();
 
   const std::vector<ArcEstimate>& arcs() const { return arcs_; }
-  /// Front-end dead-reckoned poses of base_link in odom at every window boundary.
+  /// Front-end dead reckoning (integrateArcs) of base_link in odom, every 10 ms.
   Trajectory3 frontendTrajectory() const;
 
   /// Writes frontend.tum, arcs.csv and report.json into out_dir (created if missing).
