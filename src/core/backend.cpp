@@ -30,6 +30,7 @@ void BackendOptions::validate() const {
     fail("init_sample_interval_s must be in (0, knot_spacing_s] s");
   if (!(smoothness_weight >= 0 && std::isfinite(smoothness_weight))) fail("smoothness_weight must be >= 0");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
+  if (!(output_rate_hz > 0 && output_rate_hz <= 10000)) fail("output_rate_hz must be in (0, 10000] Hz");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -153,8 +154,16 @@ void Backend::reset() {
 }
 
 void Backend::addEvents(const EventVector& events) {
+  if (events.empty()) return;
   stats_.events_in += events.size();
-  buffer_.push(events);
+  if (!buffer_.empty() && events.front().t_ns < buffer_.newestTime() - secToNs(options_.max_backwards_jump_s))
+    reset();
+  for (const PixelEvent& e : events) {
+    if (!camera_.inside(e.x, e.y))
+      ++stats_.events_outside;
+    else if (!buffer_.push(e))
+      ++stats_.events_out_of_order;
+  }
 }
 
 bool Backend::addArc(const ArcEstimate& arc) {

@@ -5,9 +5,13 @@
 
 #include <chrono>
 #include <cstdio>
+#include <fstream>
+#include <unistd.h>
 
 #include "../common/synthetic_events.h"
 #include "vwe_vo/core/backend.h"
+#include "vwe_vo/core/offline_pipeline.h"
+#include "vwe_vo/core/options_yaml.h"
 
 using namespace vwe_vo;
 
@@ -264,4 +268,48 @@ TEST(Backend, OptionsValidateNamesTheField) {
   o.volume.num_planes = 0;
   expectField(o, "num_planes");
   EXPECT_THROW(Backend(o, CameraModel(testCalibration()), testExtrinsics()), std::invalid_argument);
+}
+
+TEST(Backend, OfflinePipelineWritesTheBackendOutputs) {
+  Scene sc;
+  PipelineConfig cfg = loadPipelineConfig(std::string(VWE_VO_SOURCE_DIR) + "/config/vwe_vo.yaml");
+  EXPECT_EQ(cfg.backend.knot_spacing_s, 0.3);
+  cfg.camera = testCalibration();
+  cfg.T_base_cam = testExtrinsics();
+  cfg.frontend.nominal_speed_mps = kSpeed;
+  cfg.frontend.standstill_event_rate_hz = 1000;  // the scene has ~19k events/s
+  cfg.frontend.volume = testOptions().volume;
+  cfg.backend = testOptions();
+  const std::string dir = "/tmp/vwe_vo_test_backend_" + std::to_string(::getpid());
+  {
+    OfflinePipeline pipeline(cfg);
+    for (size_t i = 0; i < sc.events.size(); i += 5000)
+      pipeline.addEvents(EventVector(sc.events.begin() + i, sc.events.begin() + std::min(sc.events.size(), i + 5000)));
+    pipeline.finish();
+    ASSERT_NE(pipeline.backend(), nullptr);
+    ASSERT_TRUE(pipeline.backend()->hasSpline());
+    EXPECT_GE(pipeline.backend()->stats().updates, 2u);
+    pipeline.writeOutputs(dir);
+    const nlohmann::json r = pipeline.report();
+    ASSERT_TRUE(r["stages"].contains("backend"));
+    EXPECT_NEAR(r["processing_s"].get<double>(),
+                r["stages"]["frontend"]["processing_s"].get<double>() + r["stages"]["backend"]["processing_s"].get<double>(),
+                1e-9);
+  }
+  const Trajectory3 be = readTum(dir + "/backend.tum");
+  EXPECT_GE(be.size(), size_t(50));
+  nlohmann::json spline;
+  std::ifstream(dir + "/spline.json") >> spline;
+  EXPECT_EQ(spline["degree"].get<int>(), 3);
+  EXPECT_EQ(spline["knots_s"].size(), spline["control_points_m"].size() + 4);
+  std::printf("[backend] offline pipeline: %zu backend poses, %zu control points\n", be.size(),
+              spline["control_points_m"].size());
+
+  cfg.frontend_only = true;
+  OfflinePipeline fe_only(cfg);
+  fe_only.addEvents(sc.events);
+  fe_only.finish();
+  EXPECT_EQ(fe_only.backend(), nullptr);
+  EXPECT_FALSE(fe_only.report()["stages"].contains("backend"));
+  EXPECT_EQ(std::system(("rm -rf " + dir).c_str()), 0);
 }

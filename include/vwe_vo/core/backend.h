@@ -36,12 +36,15 @@ struct BackendOptions {
   double init_sample_interval_s = 0.05; // spacing of the dead-reckoned poses fitted [s]
   double smoothness_weight = 0.05;      // second-difference prior of the initial fit [1]
   double max_backwards_jump_s = 0.05;   // arcs older than newest - this reset the back-end [s]
+  double output_rate_hz = 20.0;         // rate of the sampled trajectory (backend.tum) [Hz]
   uint64_t seed = 1;                    // subsampling seed
   void validate() const;                // throws std::invalid_argument naming the field
 };
 
 struct BackendStats {
   size_t events_in = 0;
+  size_t events_outside = 0;      // outside the sensor: dropped
+  size_t events_out_of_order = 0; // older than the newest buffered event: dropped
   size_t arcs_in = 0;
   size_t updates = 0;            // refinements run
   size_t volumes = 0;            // volumes optimised (summed over refinements)
@@ -113,7 +116,9 @@ class Backend {
   Backend(const BackendOptions& options, const CameraModel& camera, const Pose3& T_base_cam);
 
   const BackendOptions& options() const { return options_; }
-  /// Time-ordered events (the ones older than the window are dropped as time advances).
+  /// Time-ordered events; events outside the sensor or out of order are dropped and counted,
+  /// a jump back by more than max_backwards_jump_s resets the back-end. Events older than the
+  /// window are dropped as time advances.
   void addEvents(const EventVector& events);
   /// Front-end arcs in time order; an arc older than the newest by more than
   /// max_backwards_jump_s resets the back-end (returns true).
