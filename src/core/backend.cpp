@@ -164,6 +164,10 @@ void Backend::addEvents(const EventVector& events) {
     else if (!buffer_.push(e))
       ++stats_.events_out_of_order;
   }
+  // Bounded memory also when no arcs arrive: the next refinement never looks further back.
+  const int64_t keep_ns = secToNs(options_.window_s + options_.tau2_s + options_.update_interval_s);
+  if (!buffer_.empty() && buffer_.newestTime() - buffer_.oldestTime() > keep_ns + keep_ns / 4)
+    buffer_.dropBefore(buffer_.newestTime() - keep_ns);
 }
 
 bool Backend::addArc(const ArcEstimate& arc) {

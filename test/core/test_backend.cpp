@@ -200,6 +200,8 @@ TEST(Backend, RefinementReducesTheRotationErrorOfBiasedArcs) {
               fe_err * 180 / kPi, be_err * 180 / kPi, fe_err / std::max(be_err, 1e-9), fe_rpe, be_rpe, st.updates,
               st.volumes, st.volumes_skipped, st.evaluations, st.solver_s, wall, st.last_gain, st.rejected);
   EXPECT_GE(st.updates, 3u);
+  // Bounded memory: only the events of the last window (+ one volume span) are kept.
+  EXPECT_LT(backend.bufferedEvents(), sc.events.size() * 0.8);
   EXPECT_GT(st.last_gain, 1.0);
   EXPECT_LT(be_err, 0.7 * fe_err);
   EXPECT_LT(be_rpe, 0.7 * fe_rpe);

@@ -136,6 +136,8 @@ class Backend {
   /// Poses of base_link in odom every 1/rate_hz from the first arc to processedUntil().
   Trajectory3 sampleTrajectory(double rate_hz) const;
   const BackendStats& stats() const { return stats_; }
+  /// Events held for the next refinement (bounded by the window, not the sequence).
+  size_t bufferedEvents() const { return buffer_.size(); }
   void reset();
 
  private:
