@@ -29,6 +29,7 @@ void BackendOptions::validate() const {
   if (!(init_sample_interval_s > 0 && init_sample_interval_s <= knot_spacing_s))
     fail("init_sample_interval_s must be in (0, knot_spacing_s] s");
   if (!(smoothness_weight >= 0 && std::isfinite(smoothness_weight))) fail("smoothness_weight must be >= 0");
+  if (!(speed_prior_weight >= 0 && std::isfinite(speed_prior_weight))) fail("speed_prior_weight must be >= 0");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
   if (!(output_rate_hz > 0 && output_rate_hz <= 10000)) fail("output_rate_hz must be in (0, 10000] Hz");
 }
@@ -72,9 +73,52 @@ double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::Vect
   return sum;
 }
 
+SpeedPrior::SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free, const std::vector<double>& u,
+                       double weight, double min_speed_mps)
+    : spline_(std::move(spline)), first_free_(first_free), weight_(weight) {
+  for (double uk : u) {
+    bool still = false;
+    for (const auto& s : spline_->standstills()) still = still || (uk >= s.from_s && uk <= s.to_s);
+    const double v = spline_->velocity(uk).norm();
+    if (still || !(v >= min_speed_mps)) continue;
+    // Only samples the free control points move.
+    if (spline_->basis(uk, 0).first + spline_->degree() < first_free_) continue;
+    u_.push_back(uk);
+    v_.push_back(v);
+  }
+}
+
+double SpeedPrior::evaluate(Eigen::VectorXd* gradient) const {
+  const int num_free = 2 * (spline_->numControlPoints() - first_free_);
+  if (gradient) gradient->setZero(num_free);
+  if (u_.empty() || weight_ == 0.0) return 0.0;
+  const double w = weight_ / double(u_.size());
+  double f = 0.0;
+  for (size_t k = 0; k < u_.size(); ++k) {
+    const BasisDerivatives b = spline_->basis(u_[k], 1);
+    Vec2 c1 = Vec2::Zero();
+    for (int j = 0; j <= spline_->degree(); ++j) c1 += b.values(1, j) * spline_->controlPoints()[b.first + j];
+    const double s = c1.norm();
+    const double r = (s - v_[k]) / v_[k];
+    f += w * r * r;
+    if (!gradient || !(s > 0)) continue;
+    const Vec2 ds_dc1 = c1 / s;
+    for (int j = 0; j <= spline_->degree(); ++j) {
+      const int i = b.first + j;
+      if (i < first_free_) continue;
+      gradient->segment<2>(2 * (i - first_free_)) += (2 * w * r / v_[k] * b.values(1, j)) * ds_dc1;
+    }
+  }
+  return f;
+}
+
 MultiVolumeCost::MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0, double step_scale,
-                                 double normaliser)
-    : objective_(objective), params0_(std::move(params0)), step_scale_(step_scale), normaliser_(normaliser) {}
+                                 double normaliser, const SpeedPrior* prior)
+    : objective_(objective),
+      params0_(std::move(params0)),
+      step_scale_(step_scale),
+      normaliser_(normaliser),
+      prior_(prior) {}
 
 Eigen::VectorXd MultiVolumeCost::params(const double* x) const {
   return params0_ + step_scale_ * Eigen::Map<const Eigen::VectorXd>(x, params0_.size());
@@ -89,7 +133,12 @@ bool MultiVolumeCost::Evaluate(const double* x, double* cost, double* gradient) 
     if (!g.allFinite()) return false;
     Eigen::Map<Eigen::VectorXd>(gradient, params0_.size()) = (-step_scale_ / normaliser_) * g;
   }
-  return true;
+  if (prior_) {
+    Eigen::VectorXd gp;
+    *cost += prior_->evaluate(gradient ? &gp : nullptr);  // the objective has set the control points
+    if (gradient) Eigen::Map<Eigen::VectorXd>(gradient, params0_.size()) += step_scale_ * gp;
+  }
+  return std::isfinite(*cost);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -307,7 +356,11 @@ void Backend::refine(int64_t t_new_ns) {
   if (!(f0 > 0) || !std::isfinite(f0)) return;
 
   const auto t0 = std::chrono::steady_clock::now();
-  auto* cost = new MultiVolumeCost(&objective, params0, options_.step_scale_m, f0);
+  std::vector<double> u_prior;
+  for (double u = u_window; u <= u_new; u += options_.init_sample_interval_s) u_prior.push_back(u);
+  const SpeedPrior prior(spline_, first_free, u_prior, options_.speed_prior_weight);
+  auto* cost = new MultiVolumeCost(&objective, params0, options_.step_scale_m, f0,
+                                   options_.speed_prior_weight > 0 ? &prior : nullptr);
   ceres::GradientProblem problem(cost);  // takes ownership
   ceres::GradientProblemSolver::Options so;
   so.line_search_direction_type = ceres::LBFGS;
@@ -323,7 +376,8 @@ void Backend::refine(int64_t t_new_ns) {
   const double f1 = objective.evaluate(params, nullptr);
   stats_.solver_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   stats_.evaluations += objective.evaluations();
-  if (!(f1 >= f0) || !params.allFinite()) {
+  // Accept what lowered the total cost (VWE and speed prior); anything else is reverted.
+  if (!(summary.final_cost <= summary.initial_cost) || !std::isfinite(f1) || !params.allFinite()) {
     ++stats_.rejected;
     objective.evaluate(params0, nullptr);  // restores the start
     stats_.last_gain = 1.0;

@@ -154,6 +154,36 @@ TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
   for (int i = 0; i < first_free; ++i) EXPECT_EQ(spline->controlPoints()[i], sc.truth->controlPoints()[i] + 0.02 * Vec2(std::sin(3.0 * i), std::cos(5.0 * i)));
 }
 
+TEST(Backend, SpeedPriorGradientMatchesCentralFiniteDifferences) {
+  auto spline = std::make_shared<BSpline>(*truthSpline());
+  const int first_free = 4;
+  std::vector<double> u;
+  for (double x = 0.0; x <= kDuration; x += 0.05) u.push_back(x);
+  const SpeedPrior prior(spline, first_free, u, 3.0);
+  EXPECT_GT(prior.numSamples(), 40u);
+  Eigen::VectorXd g;
+  EXPECT_NEAR(prior.evaluate(&g), 0.0, 1e-20);  // targets are the current speeds
+  // Move the free control points away from the targets, then compare.
+  for (int i = first_free; i < spline->numControlPoints(); ++i)
+    spline->setControlPoint(i, spline->controlPoints()[i] + 0.03 * Vec2(std::cos(2.0 * i), std::sin(7.0 * i)));
+  const double f = prior.evaluate(&g);
+  ASSERT_GT(f, 0.0);
+  ASSERT_EQ(g.size(), 2 * (spline->numControlPoints() - first_free));
+  const double h = 1e-6;
+  for (int k = 0; k < g.size(); ++k) {
+    const int i = first_free + k / 2;
+    const Vec2 P = spline->controlPoints()[i];
+    Vec2 d = Vec2::Zero();
+    d(k % 2) = h;
+    spline->setControlPoint(i, P + d);
+    const double fp = prior.evaluate(nullptr);
+    spline->setControlPoint(i, P - d);
+    const double fm = prior.evaluate(nullptr);
+    spline->setControlPoint(i, P);
+    EXPECT_NEAR(g[k], (fp - fm) / (2 * h), 1e-6 * g.norm()) << "param " << k;
+  }
+}
+
 TEST(Backend, RefinementReducesTheRotationErrorOfBiasedArcs) {
   Scene sc;
   const double bias = 3.0 * kPi / 180;

@@ -35,6 +35,7 @@ struct BackendOptions {
   double step_scale_m = 0.02;           // solver unit of a control-point coordinate [m]
   double init_sample_interval_s = 0.05; // spacing of the dead-reckoned poses fitted [s]
   double smoothness_weight = 0.05;      // second-difference prior of the initial fit [1]
+  double speed_prior_weight = 10.0;     // relative-speed prior vs the normalised VWE (0: off) [1]
   double max_backwards_jump_s = 0.05;   // arcs older than newest - this reset the back-end [s]
   double output_rate_hz = 20.0;         // rate of the sampled trajectory (backend.tum) [Hz]
   uint64_t seed = 1;                    // subsampling seed
@@ -90,11 +91,33 @@ class MultiVolumeObjective {
   size_t evaluations_ = 0;
 };
 
-/// Ceres view of a MultiVolumeObjective: minimises -sum(var)/sum(var at x0) over
+/// Soft prior that keeps the speed |c'(u)| of the free part of the spline near target speeds
+/// (the scale the front-end's v gave): weight / K * sum_k ((|c'(u_k)| - v_k) / v_k)^2. The VWE
+/// fixes the scale only through the overlap of the volumes, and rays beyond the depth range bias
+/// it (shrinking the path brings far points into the grid).
+class SpeedPrior {
+ public:
+  /// Targets are the spline's current speeds at u_k (samples with speed below min_speed_mps or in
+  /// a standstill are left out).
+  SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free, const std::vector<double>& u, double weight,
+             double min_speed_mps = 0.05);
+  /// Value at the spline's current control points; gradient (if not null) w.r.t. the free ones.
+  double evaluate(Eigen::VectorXd* gradient) const;
+  size_t numSamples() const { return u_.size(); }
+
+ private:
+  std::shared_ptr<const BSpline> spline_;
+  int first_free_;
+  std::vector<double> u_, v_;
+  double weight_;
+};
+
+/// Ceres view of a MultiVolumeObjective: minimises -sum(var)/sum(var at x0) (+ a SpeedPrior) over
 /// x = (params - params0) / step_scale, so that the start is x = 0 with cost -1.
 class MultiVolumeCost : public ceres::FirstOrderFunction {
  public:
-  MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0, double step_scale, double normaliser);
+  MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0, double step_scale, double normaliser,
+                  const SpeedPrior* prior = nullptr);
   bool Evaluate(const double* x, double* cost, double* gradient) const override;
   int NumParameters() const override { return static_cast<int>(params0_.size()); }
   Eigen::VectorXd params(const double* x) const;
@@ -103,6 +126,7 @@ class MultiVolumeCost : public ceres::FirstOrderFunction {
   MultiVolumeObjective* objective_;
   Eigen::VectorXd params0_;
   double step_scale_, normaliser_;
+  const SpeedPrior* prior_;
 };
 
 /// Least squares of the control points [first, n) of `spline` to positions p_odom at spline
