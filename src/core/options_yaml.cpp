@@ -20,7 +20,8 @@ class Section {
  public:
   Section(const YAML::Node& parent, const std::string& name) : name_(name) {
     if (parent && parent[name]) node_ = parent[name];
-    if (node_ && !node_.IsMap()) throw std::invalid_argument("section '" + name + "' must be a map");
+    // An absent section stays a null node (defaults); a present one must be a map.
+    if (node_ && !node_.IsNull() && !node_.IsMap()) throw std::invalid_argument("section '" + name + "' must be a map");
   }
   template <typename T>
   void get(const char* key, T* value) {

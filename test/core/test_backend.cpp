@@ -345,3 +345,29 @@ TEST(Backend, OfflinePipelineWritesTheBackendOutputs) {
   EXPECT_FALSE(fe_only.report()["stages"].contains("backend"));
   EXPECT_EQ(std::system(("rm -rf " + dir).c_str()), 0);
 }
+
+TEST(Backend, YamlLoaderFillsBackendOptionsAndNamesBadKeys) {
+  const std::string calib = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
+  const std::string path = "/tmp/vwe_vo_test_backend_cfg_" + std::to_string(::getpid()) + ".yaml";
+  auto write = [&](const std::string& backend) {
+    std::ofstream(path) << "camera_calibration: " << calib << "\nbackend:\n" << backend;
+  };
+  write("  window_s: 3.0\n  tau1_s: 0.25\n  bogus_key: 1\n  volume:\n    num_planes: 17\n");
+  const PipelineConfig cfg = loadPipelineConfig(path);
+  EXPECT_EQ(cfg.backend.window_s, 3.0);
+  EXPECT_EQ(cfg.backend.tau1_s, 0.25);
+  EXPECT_EQ(cfg.backend.volume.num_planes, 17);
+  EXPECT_EQ(cfg.backend.tau2_s, BackendOptions().tau2_s);
+  bool warned = false;
+  for (const std::string& w : cfg.warnings) warned = warned || w.find("backend.bogus_key") != std::string::npos;
+  EXPECT_TRUE(warned);
+  write("  tau1_s: 0.5\n  tau2_s: 0.4\n");
+  try {
+    loadPipelineConfig(path);
+    ADD_FAILURE() << "tau2_s <= tau1_s accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("tau2_s"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+  std::remove(path.c_str());
+}
