@@ -11,7 +11,8 @@ using namespace vwe_vo;
 
 namespace {
 const CameraModel& camera() {
-  static const CameraModel cam(loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+  static const CameraModel cam(
+      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
   return cam;
 }
 
@@ -41,17 +42,20 @@ void BM_MultiVolumeObjective(benchmark::State& state) {
   for (int i = 0; i < num_volumes; ++i) {
     const int64_t t_ref = secToNs(0.3 + 2.4 * (i + 0.5) / num_volumes);
     const BSplineCameraModel model(truth, defaultTBaseCam(), t_ref);
-    volumes.push_back({t_ref, synthetic::randomPointEvents(camera(), model, events_per_volume, i + 1, 0.2, 2000)});
+    volumes.push_back({t_ref, synthetic::randomPointEvents(camera(), model, events_per_volume,
+                                                           i + 1, 0.2, 2000)});
   }
   auto spline = std::make_shared<BSpline>(*truth);
   MultiVolumeObjective objective(spline, defaultTBaseCam(), 4, volumes, &vwe);
   Eigen::VectorXd x = objective.freeParams();
   x.array() += 0.01;
   Eigen::VectorXd g;
-  for (auto _ : state) benchmark::DoNotOptimize(objective.evaluate(x, with_gradient ? &g : nullptr));
-  state.counters["evals_per_s"] = benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
-  state.counters["events_per_s"] =
-      benchmark::Counter(double(state.iterations()) * num_volumes * events_per_volume, benchmark::Counter::kIsRate);
+  for (auto _ : state)
+    benchmark::DoNotOptimize(objective.evaluate(x, with_gradient ? &g : nullptr));
+  state.counters["evals_per_s"] =
+      benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["events_per_s"] = benchmark::Counter(
+      double(state.iterations()) * num_volumes * events_per_volume, benchmark::Counter::kIsRate);
   state.counters["free_params"] = double(objective.numFree());
 }
 BENCHMARK(BM_MultiVolumeObjective)

@@ -16,36 +16,43 @@ void BackendOptions::validate() const {
   auto fail = [](const std::string& m) { throw std::invalid_argument("BackendOptions: " + m); };
   volume.validate();
   if (!(degree >= 1 && degree <= 5)) fail("degree must be in [1, 5]");
-  if (!(knot_spacing_s >= 0.02 && knot_spacing_s <= 10)) fail("knot_spacing_s must be in [0.02, 10] s");
+  if (!(knot_spacing_s >= 0.02 && knot_spacing_s <= 10))
+    fail("knot_spacing_s must be in [0.02, 10] s");
   if (!(tau1_s > 0.005 && tau1_s <= 10)) fail("tau1_s must be in (0.005, 10] s");
   if (!(tau2_s > tau1_s && tau2_s <= 10)) fail("tau2_s must be in (tau1_s, 10] s");
   if (!(window_s >= tau2_s && window_s <= 60)) fail("window_s must be in [tau2_s, 60] s");
   if (!(update_interval_s > 0 && update_interval_s <= window_s))
     fail("update_interval_s must be in (0, window_s] s");
   if (max_events_per_volume < 100) fail("max_events_per_volume must be at least 100");
-  if (min_events_per_volume > max_events_per_volume) fail("min_events_per_volume must be <= max_events_per_volume");
+  if (min_events_per_volume > max_events_per_volume)
+    fail("min_events_per_volume must be <= max_events_per_volume");
   if (max_iterations < 0) fail("max_iterations must be >= 0");
   if (!(step_scale_m > 0 && step_scale_m <= 1)) fail("step_scale_m must be in (0, 1] m");
   if (!(init_sample_interval_s > 0 && init_sample_interval_s <= knot_spacing_s))
     fail("init_sample_interval_s must be in (0, knot_spacing_s] s");
-  if (!(smoothness_weight >= 0 && std::isfinite(smoothness_weight))) fail("smoothness_weight must be >= 0");
-  if (!(speed_prior_weight >= 0 && std::isfinite(speed_prior_weight))) fail("speed_prior_weight must be >= 0");
+  if (!(smoothness_weight >= 0 && std::isfinite(smoothness_weight)))
+    fail("smoothness_weight must be >= 0");
+  if (!(speed_prior_weight >= 0 && std::isfinite(speed_prior_weight)))
+    fail("speed_prior_weight must be >= 0");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
-  if (!(output_rate_hz > 0 && output_rate_hz <= 10000)) fail("output_rate_hz must be in (0, 10000] Hz");
+  if (!(output_rate_hz > 0 && output_rate_hz <= 10000))
+    fail("output_rate_hz must be in (0, 10000] Hz");
 }
 
 // ---------------------------------------------------------------------------------------------
 
-MultiVolumeObjective::MultiVolumeObjective(std::shared_ptr<BSpline> spline, const Pose3& T_base_cam, int first_free,
-                                           std::vector<BackendVolume> volumes, VweObjective* objective)
+MultiVolumeObjective::MultiVolumeObjective(std::shared_ptr<BSpline> spline, const Pose3& T_base_cam,
+                                           int first_free, std::vector<BackendVolume> volumes,
+                                           VweObjective* objective)
     : spline_(std::move(spline)),
       T_base_cam_(T_base_cam),
       first_free_(first_free),
       volumes_(std::move(volumes)),
       objective_(objective) {
   if (first_free_ < 0 || first_free_ > spline_->numControlPoints())
-    throw std::invalid_argument("MultiVolumeObjective: first_free " + std::to_string(first_free_) + " outside [0, " +
-                                std::to_string(spline_->numControlPoints()) + "]");
+    throw std::invalid_argument("MultiVolumeObjective: first_free " + std::to_string(first_free_) +
+                                " outside [0, " + std::to_string(spline_->numControlPoints()) +
+                                "]");
 }
 
 Eigen::VectorXd MultiVolumeObjective::freeParams() const {
@@ -57,8 +64,8 @@ Eigen::VectorXd MultiVolumeObjective::freeParams() const {
 
 double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient) {
   if (params.size() != numFree())
-    throw std::invalid_argument("MultiVolumeObjective: " + std::to_string(params.size()) + " parameters, expected " +
-                                std::to_string(numFree()));
+    throw std::invalid_argument("MultiVolumeObjective: " + std::to_string(params.size()) +
+                                " parameters, expected " + std::to_string(numFree()));
   for (int i = first_free_; i < spline_->numControlPoints(); ++i)
     spline_->setControlPoint(i, params.segment<2>(2 * (i - first_free_)));
   ++evaluations_;
@@ -66,15 +73,16 @@ double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::Vect
   double sum = 0.0;
   for (const BackendVolume& v : volumes_) {
     const BSplineCameraModel model(spline_, T_base_cam_, v.t_ref_ns);
-    const VweEvaluation e = objective_->evaluate(v.events, model, gradient ? &full_gradient_ : nullptr);
+    const VweEvaluation e =
+        objective_->evaluate(v.events, model, gradient ? &full_gradient_ : nullptr);
     sum += e.variance;
     if (gradient) *gradient += full_gradient_.tail(numFree());
   }
   return sum;
 }
 
-SpeedPrior::SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free, const std::vector<double>& u,
-                       double weight, double min_speed_mps)
+SpeedPrior::SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free,
+                       const std::vector<double>& u, double weight, double min_speed_mps)
     : spline_(std::move(spline)), first_free_(first_free), weight_(weight) {
   for (double uk : u) {
     bool still = false;
@@ -97,7 +105,8 @@ double SpeedPrior::evaluate(Eigen::VectorXd* gradient) const {
   for (size_t k = 0; k < u_.size(); ++k) {
     const BasisDerivatives b = spline_->basis(u_[k], 1);
     Vec2 c1 = Vec2::Zero();
-    for (int j = 0; j <= spline_->degree(); ++j) c1 += b.values(1, j) * spline_->controlPoints()[b.first + j];
+    for (int j = 0; j <= spline_->degree(); ++j)
+      c1 += b.values(1, j) * spline_->controlPoints()[b.first + j];
     const double s = c1.norm();
     const double r = (s - v_[k]) / v_[k];
     f += w * r * r;
@@ -112,8 +121,8 @@ double SpeedPrior::evaluate(Eigen::VectorXd* gradient) const {
   return f;
 }
 
-MultiVolumeCost::MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0, double step_scale,
-                                 double normaliser, const SpeedPrior* prior)
+MultiVolumeCost::MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0,
+                                 double step_scale, double normaliser, const SpeedPrior* prior)
     : objective_(objective),
       params0_(std::move(params0)),
       step_scale_(step_scale),
@@ -135,7 +144,8 @@ bool MultiVolumeCost::Evaluate(const double* x, double* cost, double* gradient) 
   }
   if (prior_) {
     Eigen::VectorXd gp;
-    *cost += prior_->evaluate(gradient ? &gp : nullptr);  // the objective has set the control points
+    *cost +=
+        prior_->evaluate(gradient ? &gp : nullptr);  // the objective has set the control points
     if (gradient) Eigen::Map<Eigen::VectorXd>(gradient, params0_.size()) += step_scale_ * gp;
   }
   return std::isfinite(*cost);
@@ -143,15 +153,15 @@ bool MultiVolumeCost::Evaluate(const double* x, double* cost, double* gradient) 
 
 // ---------------------------------------------------------------------------------------------
 
-void fitControlPoints(BSpline* spline, int first, const std::vector<double>& u, const std::vector<Vec2>& p_odom,
-                      double smoothness_weight) {
+void fitControlPoints(BSpline* spline, int first, const std::vector<double>& u,
+                      const std::vector<Vec2>& p_odom, double smoothness_weight) {
   const int n = spline->numControlPoints();
   if (u.size() != p_odom.size())
     throw std::invalid_argument("fitControlPoints: " + std::to_string(u.size()) + " times but " +
                                 std::to_string(p_odom.size()) + " positions");
   if (first < 0 || first >= n)
-    throw std::invalid_argument("fitControlPoints: first " + std::to_string(first) + " outside [0, " +
-                                std::to_string(n) + ")");
+    throw std::invalid_argument("fitControlPoints: first " + std::to_string(first) +
+                                " outside [0, " + std::to_string(n) + ")");
   const int m = n - first;
   const std::vector<Vec2>& P = spline->controlPoints();
   Eigen::MatrixXd AtA = Eigen::MatrixXd::Zero(m, m);
@@ -189,8 +199,9 @@ Backend::Backend(const BackendOptions& options, const CameraModel& camera, const
     : options_(options),
       camera_(camera),
       T_base_cam_(T_base_cam),
-      volume_((options.validate(), options.volume), camera.width(), camera.height(), camera.calibration().fx,
-              camera.calibration().fy, camera.calibration().cx, camera.calibration().cy),
+      volume_((options.validate(), options.volume), camera.width(), camera.height(),
+              camera.calibration().fx, camera.calibration().fy, camera.calibration().cx,
+              camera.calibration().cy),
       objective_(camera_, &volume_) {}
 
 void Backend::reset() {
@@ -205,7 +216,8 @@ void Backend::reset() {
 void Backend::addEvents(const EventVector& events) {
   if (events.empty()) return;
   stats_.events_in += events.size();
-  if (!buffer_.empty() && events.front().t_ns < buffer_.newestTime() - secToNs(options_.max_backwards_jump_s))
+  if (!buffer_.empty() &&
+      events.front().t_ns < buffer_.newestTime() - secToNs(options_.max_backwards_jump_s))
     reset();
   for (const PixelEvent& e : events) {
     if (!camera_.inside(e.x, e.y))
@@ -268,7 +280,8 @@ void Backend::update(int64_t t_new_ns) {
 
 std::vector<BSpline::Interval> Backend::standstillIntervals(int64_t epoch_ns) const {
   std::vector<BSpline::Interval> out;
-  for (const auto& s : standstills_ns_) out.push_back({dtSec(s.first, epoch_ns), dtSec(s.second, epoch_ns)});
+  for (const auto& s : standstills_ns_)
+    out.push_back({dtSec(s.first, epoch_ns), dtSec(s.second, epoch_ns)});
   return out;
 }
 
@@ -303,7 +316,8 @@ void Backend::extendSpline(int64_t t_new_ns) {
   std::vector<double> u;
   std::vector<Vec2> pos;
   const double u_from = std::max(0.0, knots[first]), u_to = next->validTo();
-  const int samples = std::max(2, int(std::ceil((u_to - u_from) / options_.init_sample_interval_s)) + 1);
+  const int samples =
+      std::max(2, int(std::ceil((u_to - u_from) / options_.init_sample_interval_s)) + 1);
   for (int k = 0; k < samples; ++k) {
     const double uk = u_from + (u_to - u_from) * k / (samples - 1);
     u.push_back(uk);
@@ -323,7 +337,9 @@ void Backend::refine(int64_t t_new_ns) {
   // Control points whose support ends before the window are fixed, and so are the first p + 1
   // (the first segment from the front-end: origin, heading and scale).
   int first_free = p + 1;
-  while (first_free < spline_->numControlPoints() && spline_->knots()[first_free + p + 1] <= u_window) ++first_free;
+  while (first_free < spline_->numControlPoints() &&
+         spline_->knots()[first_free + p + 1] <= u_window)
+    ++first_free;
   if (first_free >= spline_->numControlPoints() || options_.max_iterations == 0) return;
 
   const std::vector<BSpline::Interval>& still = spline_->standstills();
@@ -345,7 +361,8 @@ void Backend::refine(int64_t t_new_ns) {
       ++stats_.volumes_skipped;
       continue;
     }
-    volumes.push_back({t_ref, subsampleEvents(ev, options_.max_events_per_volume, options_.seed + volumes.size())});
+    volumes.push_back({t_ref, subsampleEvents(ev, options_.max_events_per_volume,
+                                              options_.seed + volumes.size())});
   }
   if (volumes.empty()) return;
   stats_.volumes += volumes.size();
@@ -391,8 +408,10 @@ Trajectory3 Backend::sampleTrajectory(double rate_hz) const {
   if (!spline_ || !(rate_hz > 0)) return out;
   const int64_t t0 = spline_->epochNs(), t1 = processed_ns_;
   const int64_t step = std::max<int64_t>(1, secToNs(1.0 / rate_hz));
-  for (int64_t t = t0; t <= t1; t += step) out.push_back({t, spline_->T_odom_base(spline_->toSplineTime(t))});
-  if (out.empty() || out.back().t_ns < t1) out.push_back({t1, spline_->T_odom_base(spline_->toSplineTime(t1))});
+  for (int64_t t = t0; t <= t1; t += step)
+    out.push_back({t, spline_->T_odom_base(spline_->toSplineTime(t))});
+  if (out.empty() || out.back().t_ns < t1)
+    out.push_back({t1, spline_->T_odom_base(spline_->toSplineTime(t1))});
   return out;
 }
 

@@ -2,11 +2,11 @@
 // gradient, a known spline trajectory recovered from events starting from biased front-end arcs,
 // finite poses through a standstill, and option validation.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
 #include <fstream>
-#include <unistd.h>
 
 #include "../common/synthetic_events.h"
 #include "vwe_vo/core/backend.h"
@@ -17,10 +17,10 @@ using namespace vwe_vo;
 
 namespace {
 
-constexpr int64_t kEpoch = 100000000000LL;  // 100 s
-constexpr double kDuration = 3.2;           // [s]
-constexpr double kSpeed = 0.4;              // [m/s]
-constexpr int kFdEvents = 40000;           // events per volume of the gradient check
+constexpr int64_t kEpoch = 100000000000LL;     // 100 s
+constexpr double kDuration = 3.2;              // [s]
+constexpr double kSpeed = 0.4;                 // [m/s]
+constexpr int kFdEvents = 40000;               // events per volume of the gradient check
 constexpr double kYawRate = 10.0 * kPi / 180;  // [rad/s]
 
 CameraCalibration testCalibration() {
@@ -34,7 +34,9 @@ CameraCalibration testCalibration() {
   return c;
 }
 
-Pose3 testExtrinsics() { return makePose(R_base_opticalFrame(), Vec3(0.1, 0.0, 0.3)); }
+Pose3 testExtrinsics() {
+  return makePose(R_base_opticalFrame(), Vec3(0.1, 0.0, 0.3));
+}
 
 /// Truth: a gentle curve (yaw rate 10 deg/s varying by +-4 deg/s) at 0.4 m/s, as a spline.
 std::shared_ptr<BSpline> truthSpline() {
@@ -69,8 +71,8 @@ struct Scene {
   std::shared_ptr<BSpline> truth = truthSpline();
   EventVector events;
   /// n events over [t_mid - half_span, t_mid + half_span] (by default the whole truth).
-  explicit Scene(int n = 60000, double t_mid_s = 0.5 * kDuration, double half_span_s = 0.5 * kDuration - 1e-3,
-                 int num_points = 1500) {
+  explicit Scene(int n = 60000, double t_mid_s = 0.5 * kDuration,
+                 double half_span_s = 0.5 * kDuration - 1e-3, int num_points = 1500) {
     const BSplineCameraModel model(truth, testExtrinsics(), kEpoch + secToNs(t_mid_s));
     events = synthetic::randomPointEvents(cam, model, n, 7, half_span_s, num_points);
   }
@@ -92,7 +94,8 @@ std::vector<ArcEstimate> truthArcs(const BSpline& truth, double bias) {
 }
 
 double headingChangeError(const BSpline& est, const BSpline& truth, double u0, double u1) {
-  const double d_est = wrapAngle(est.heading(est.toSplineTime(kEpoch) + u1) - est.heading(est.toSplineTime(kEpoch) + u0));
+  const double d_est = wrapAngle(est.heading(est.toSplineTime(kEpoch) + u1) -
+                                 est.heading(est.toSplineTime(kEpoch) + u0));
   const double d_true = wrapAngle(truth.heading(u1) - truth.heading(u0));
   return std::abs(wrapAngle(d_est - d_true));
 }
@@ -111,13 +114,15 @@ TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
   // A perturbed copy of the truth, three volumes around the middle.
   auto spline = std::make_shared<BSpline>(*sc.truth);
   for (int i = 0; i < spline->numControlPoints(); ++i)
-    spline->setControlPoint(i, spline->controlPoints()[i] + 0.02 * Vec2(std::sin(3.0 * i), std::cos(5.0 * i)));
+    spline->setControlPoint(
+        i, spline->controlPoints()[i] + 0.02 * Vec2(std::sin(3.0 * i), std::cos(5.0 * i)));
   std::vector<BackendVolume> volumes;
   EventBuffer buffer;
   buffer.push(sc.events);
   for (double u : {1.3, 1.6, 1.9}) {
     const int64_t t = kEpoch + secToNs(u);
-    volumes.push_back({t, subsampleEvents(buffer.window(t - secToNs(0.2), t + secToNs(0.2)), kFdEvents, 1)});
+    volumes.push_back(
+        {t, subsampleEvents(buffer.window(t - secToNs(0.2), t + secToNs(0.2)), kFdEvents, 1)});
   }
   const int first_free = 5;
   MultiVolumeObjective obj(spline, testExtrinsics(), first_free, volumes, &vwe);
@@ -146,12 +151,15 @@ TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
   const double cosine = g.dot(fd) / (g.norm() * fd.norm());
   EXPECT_LT(rel_norm, 0.05);
   EXPECT_GT(cosine, 0.998);
-  std::printf("[backend] FD check: %d free params, |g - fd| / |fd| = %.2e, max per component %.2e of |fd|, "
-              "cosine %.5f\n",
-              int(x0.size()), rel_norm, max_rel, cosine);
+  std::printf(
+      "[backend] FD check: %d free params, |g - fd| / |fd| = %.2e, max per component %.2e of |fd|, "
+      "cosine %.5f\n",
+      int(x0.size()), rel_norm, max_rel, cosine);
   // The fixed control points are not touched.
   obj.evaluate(x0, nullptr);
-  for (int i = 0; i < first_free; ++i) EXPECT_EQ(spline->controlPoints()[i], sc.truth->controlPoints()[i] + 0.02 * Vec2(std::sin(3.0 * i), std::cos(5.0 * i)));
+  for (int i = 0; i < first_free; ++i)
+    EXPECT_EQ(spline->controlPoints()[i],
+              sc.truth->controlPoints()[i] + 0.02 * Vec2(std::sin(3.0 * i), std::cos(5.0 * i)));
 }
 
 TEST(Backend, SpeedPriorGradientMatchesCentralFiniteDifferences) {
@@ -165,7 +173,8 @@ TEST(Backend, SpeedPriorGradientMatchesCentralFiniteDifferences) {
   EXPECT_NEAR(prior.evaluate(&g), 0.0, 1e-20);  // targets are the current speeds
   // Move the free control points away from the targets, then compare.
   for (int i = first_free; i < spline->numControlPoints(); ++i)
-    spline->setControlPoint(i, spline->controlPoints()[i] + 0.03 * Vec2(std::cos(2.0 * i), std::sin(7.0 * i)));
+    spline->setControlPoint(
+        i, spline->controlPoints()[i] + 0.03 * Vec2(std::cos(2.0 * i), std::sin(7.0 * i)));
   const double f = prior.evaluate(&g);
   ASSERT_GT(f, 0.0);
   ASSERT_EQ(g.size(), 2 * (spline->numControlPoints() - first_free));
@@ -224,11 +233,13 @@ TEST(Backend, RefinementReducesTheRotationErrorOfBiasedArcs) {
   fe_rpe = std::sqrt(fe_rpe / pairs) * 180 / kPi;
   be_rpe = std::sqrt(be_rpe / pairs) * 180 / kPi;
   const BackendStats& st = backend.stats();
-  std::printf("[backend] heading error at the end: front-end %.2f deg, back-end %.2f deg (factor %.2f); "
-              "rotation RPE(1 s) %.2f -> %.2f deg; %zu updates, %zu volumes, %zu skipped, %zu evaluations, "
-              "solver %.2f s, wall %.2f s, last gain %.4f, rejected %zu\n",
-              fe_err * 180 / kPi, be_err * 180 / kPi, fe_err / std::max(be_err, 1e-9), fe_rpe, be_rpe, st.updates,
-              st.volumes, st.volumes_skipped, st.evaluations, st.solver_s, wall, st.last_gain, st.rejected);
+  std::printf(
+      "[backend] heading error at the end: front-end %.2f deg, back-end %.2f deg (factor %.2f); "
+      "rotation RPE(1 s) %.2f -> %.2f deg; %zu updates, %zu volumes, %zu skipped, %zu evaluations, "
+      "solver %.2f s, wall %.2f s, last gain %.4f, rejected %zu\n",
+      fe_err * 180 / kPi, be_err * 180 / kPi, fe_err / std::max(be_err, 1e-9), fe_rpe, be_rpe,
+      st.updates, st.volumes, st.volumes_skipped, st.evaluations, st.solver_s, wall, st.last_gain,
+      st.rejected);
   EXPECT_GE(st.updates, 3u);
   // Bounded memory: only the events of the last window (+ one volume span) are kept.
   EXPECT_LT(backend.bufferedEvents(), sc.events.size() * 0.8);
@@ -316,7 +327,8 @@ TEST(Backend, OfflinePipelineWritesTheBackendOutputs) {
   {
     OfflinePipeline pipeline(cfg);
     for (size_t i = 0; i < sc.events.size(); i += 5000)
-      pipeline.addEvents(EventVector(sc.events.begin() + i, sc.events.begin() + std::min(sc.events.size(), i + 5000)));
+      pipeline.addEvents(EventVector(sc.events.begin() + i,
+                                     sc.events.begin() + std::min(sc.events.size(), i + 5000)));
     pipeline.finish();
     ASSERT_NE(pipeline.backend(), nullptr);
     ASSERT_TRUE(pipeline.backend()->hasSpline());
@@ -325,7 +337,8 @@ TEST(Backend, OfflinePipelineWritesTheBackendOutputs) {
     const nlohmann::json r = pipeline.report();
     ASSERT_TRUE(r["stages"].contains("backend"));
     EXPECT_NEAR(r["processing_s"].get<double>(),
-                r["stages"]["frontend"]["processing_s"].get<double>() + r["stages"]["backend"]["processing_s"].get<double>(),
+                r["stages"]["frontend"]["processing_s"].get<double>() +
+                    r["stages"]["backend"]["processing_s"].get<double>(),
                 1e-9);
   }
   const Trajectory3 be = readTum(dir + "/backend.tum");
@@ -359,7 +372,8 @@ TEST(Backend, YamlLoaderFillsBackendOptionsAndNamesBadKeys) {
   EXPECT_EQ(cfg.backend.volume.num_planes, 17);
   EXPECT_EQ(cfg.backend.tau2_s, BackendOptions().tau2_s);
   bool warned = false;
-  for (const std::string& w : cfg.warnings) warned = warned || w.find("backend.bogus_key") != std::string::npos;
+  for (const std::string& w : cfg.warnings)
+    warned = warned || w.find("backend.bogus_key") != std::string::npos;
   EXPECT_TRUE(warned);
   write("  tau1_s: 0.5\n  tau2_s: 0.4\n");
   try {

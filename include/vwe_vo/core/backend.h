@@ -22,39 +22,39 @@
 namespace vwe_vo {
 
 struct BackendOptions {
-  VolumeOptions volume;                 // the VWE grid of every back-end volume
-  int degree = 3;                       // spline degree p (1..5)
-  double knot_spacing_s = 0.3;          // uniform knot span [s]
-  double tau1_s = 0.2;                  // spacing of the volume reference times [s]
-  double tau2_s = 0.4;                  // events span of one volume [s], > tau1_s
-  double window_s = 2.0;                // length of the optimised sliding window [s]
-  double update_interval_s = 1.0;       // new arcs that trigger a refinement [s]
-  size_t max_events_per_volume = 4000;  // events voted per volume (uniform subsampling)
-  size_t min_events_per_volume = 300;   // fewer events: the volume is skipped [events]
-  int max_iterations = 20;              // LBFGS iterations per refinement
-  double step_scale_m = 0.02;           // solver unit of a control-point coordinate [m]
-  double init_sample_interval_s = 0.05; // spacing of the dead-reckoned poses fitted [s]
-  double smoothness_weight = 0.05;      // second-difference prior of the initial fit [1]
-  double speed_prior_weight = 10.0;     // relative-speed prior vs the normalised VWE (0: off) [1]
-  double max_backwards_jump_s = 0.05;   // arcs older than newest - this reset the back-end [s]
-  double output_rate_hz = 20.0;         // rate of the sampled trajectory (backend.tum) [Hz]
-  uint64_t seed = 1;                    // subsampling seed
-  void validate() const;                // throws std::invalid_argument naming the field
+  VolumeOptions volume;                  // the VWE grid of every back-end volume
+  int degree = 3;                        // spline degree p (1..5)
+  double knot_spacing_s = 0.3;           // uniform knot span [s]
+  double tau1_s = 0.2;                   // spacing of the volume reference times [s]
+  double tau2_s = 0.4;                   // events span of one volume [s], > tau1_s
+  double window_s = 2.0;                 // length of the optimised sliding window [s]
+  double update_interval_s = 1.0;        // new arcs that trigger a refinement [s]
+  size_t max_events_per_volume = 4000;   // events voted per volume (uniform subsampling)
+  size_t min_events_per_volume = 300;    // fewer events: the volume is skipped [events]
+  int max_iterations = 20;               // LBFGS iterations per refinement
+  double step_scale_m = 0.02;            // solver unit of a control-point coordinate [m]
+  double init_sample_interval_s = 0.05;  // spacing of the dead-reckoned poses fitted [s]
+  double smoothness_weight = 0.05;       // second-difference prior of the initial fit [1]
+  double speed_prior_weight = 10.0;      // relative-speed prior vs the normalised VWE (0: off) [1]
+  double max_backwards_jump_s = 0.05;    // arcs older than newest - this reset the back-end [s]
+  double output_rate_hz = 20.0;          // rate of the sampled trajectory (backend.tum) [Hz]
+  uint64_t seed = 1;                     // subsampling seed
+  void validate() const;                 // throws std::invalid_argument naming the field
 };
 
 struct BackendStats {
   size_t events_in = 0;
-  size_t events_outside = 0;      // outside the sensor: dropped
-  size_t events_out_of_order = 0; // older than the newest buffered event: dropped
+  size_t events_outside = 0;       // outside the sensor: dropped
+  size_t events_out_of_order = 0;  // older than the newest buffered event: dropped
   size_t arcs_in = 0;
-  size_t updates = 0;            // refinements run
-  size_t volumes = 0;            // volumes optimised (summed over refinements)
-  size_t volumes_skipped = 0;    // in a standstill or with too few events
-  size_t evaluations = 0;        // objective + gradient evaluations
-  size_t rejected = 0;           // refinements whose result was worse than the start (reverted)
+  size_t updates = 0;          // refinements run
+  size_t volumes = 0;          // volumes optimised (summed over refinements)
+  size_t volumes_skipped = 0;  // in a standstill or with too few events
+  size_t evaluations = 0;      // objective + gradient evaluations
+  size_t rejected = 0;         // refinements whose result was worse than the start (reverted)
   size_t resets = 0;
-  double solver_s = 0.0;         // wall time in the solver [s]
-  double last_gain = 0.0;        // objective ratio final / initial of the last refinement
+  double solver_s = 0.0;   // wall time in the solver [s]
+  double last_gain = 0.0;  // objective ratio final / initial of the last refinement
 };
 
 /// One volume of the multi-volume objective: reference time and its (subsampled) events.
@@ -99,8 +99,8 @@ class SpeedPrior {
  public:
   /// Targets are the spline's current speeds at u_k (samples with speed below min_speed_mps or in
   /// a standstill are left out).
-  SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free, const std::vector<double>& u, double weight,
-             double min_speed_mps = 0.05);
+  SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free, const std::vector<double>& u,
+             double weight, double min_speed_mps = 0.05);
   /// Value at the spline's current control points; gradient (if not null) w.r.t. the free ones.
   double evaluate(Eigen::VectorXd* gradient) const;
   size_t numSamples() const { return u_.size(); }
@@ -116,8 +116,8 @@ class SpeedPrior {
 /// x = (params - params0) / step_scale, so that the start is x = 0 with cost -1.
 class MultiVolumeCost : public ceres::FirstOrderFunction {
  public:
-  MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0, double step_scale, double normaliser,
-                  const SpeedPrior* prior = nullptr);
+  MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0, double step_scale,
+                  double normaliser, const SpeedPrior* prior = nullptr);
   bool Evaluate(const double* x, double* cost, double* gradient) const override;
   int NumParameters() const override { return static_cast<int>(params0_.size()); }
   Eigen::VectorXd params(const double* x) const;
@@ -132,9 +132,19 @@ class MultiVolumeCost : public ceres::FirstOrderFunction {
 /// Least squares of the control points [first, n) of `spline` to positions p_odom at spline
 /// times u (the others fixed), with a second-difference smoothness prior of weight w on the free
 /// points (it determines points the samples barely touch). Throws std::invalid_argument on sizes.
-void fitControlPoints(BSpline* spline, int first, const std::vector<double>& u, const std::vector<Vec2>& p_odom,
-                      double smoothness_weight);
+void fitControlPoints(BSpline* spline, int first, const std::vector<double>& u,
+                      const std::vector<Vec2>& p_odom, double smoothness_weight);
 
+/// The sliding-window back-end. The spline has uniform, unclamped knots (k - p) * knot_spacing_s
+/// from the first arc's start: extending it appends knots and control points without moving the
+/// curve already refined (Piegl & Tiller placement would move every knot as data arrives). Each
+/// update (every update_interval_s of new arcs): the control points whose support reaches past
+/// the previous update are refit by least squares to the refined curve up to there and, beyond,
+/// to the front-end's dead reckoning composed onto the refined pose there; then every control
+/// point whose support ends before the window (and always the first p + 1: origin, heading and
+/// scale) is fixed and the others maximise the summed variance of the volumes in the window
+/// (LBFGS on the analytic gradient, plus the SpeedPrior). Volumes whose reference time is in a
+/// standstill are skipped; STANDSTILL arcs become held intervals of the spline.
 class Backend {
  public:
   Backend(const BackendOptions& options, const CameraModel& camera, const Pose3& T_base_cam);
@@ -177,7 +187,7 @@ class Backend {
   VweObjective objective_;
   EventBuffer buffer_;
   std::vector<std::pair<int64_t, int64_t>> standstills_ns_;  // merged STANDSTILL arcs
-  std::unique_ptr<ArcChain> chain_;  // front-end dead reckoning
+  std::unique_ptr<ArcChain> chain_;                          // front-end dead reckoning
   int64_t newest_arc_ns_ = -1;
   int64_t processed_ns_ = -1;
   std::shared_ptr<BSpline> spline_;
