@@ -25,7 +25,21 @@ void makeDirs(const std::string& dir) {
 }  // namespace
 
 OfflinePipeline::OfflinePipeline(const PipelineConfig& config)
-    : config_(config), camera_(config.camera), frontend_(config.frontend, camera_, config.T_base_cam) {}
+    : config_(config), camera_(config.camera), frontend_(config.frontend, camera_, config.T_base_cam) {
+  if (!config.frontend_only) backend_ = std::make_unique<Backend>(config.backend, camera_, config.T_base_cam);
+}
+
+void OfflinePipeline::runBackend(const EventVector& events, size_t first_new_arc, bool at_end) {
+  if (!backend_) return;
+  const auto t0 = Clock::now();
+  backend_->addEvents(events);
+  for (size_t i = first_new_arc; i < arcs_.size(); ++i) {
+    backend_->addArc(arcs_[i]);
+    backend_->process();
+  }
+  if (at_end) backend_->finish();
+  backend_s_ += secondsSince(t0);
+}
 
 void OfflinePipeline::addEvents(const EventVector& events) {
   if (events.empty()) return;
@@ -33,9 +47,11 @@ void OfflinePipeline::addEvents(const EventVector& events) {
   t_last_ = std::max(t_last_, events.back().t_ns);
   events_ += events.size();
   const auto t0 = Clock::now();
+  const size_t first_new_arc = arcs_.size();
   frontend_.addEvents(events);
   for (const ArcEstimate& a : frontend_.process()) arcs_.push_back(a);
   frontend_s_ += secondsSince(t0);
+  runBackend(events, first_new_arc, false);
 }
 
 void OfflinePipeline::addOdometry(int64_t t_ns, double v, double w) { frontend_.addOdometry(t_ns, v, w); }
@@ -43,8 +59,34 @@ void OfflinePipeline::addGyro(int64_t t_ns, double w) { frontend_.addGyro(t_ns, 
 
 void OfflinePipeline::finish() {
   const auto t0 = Clock::now();
+  const size_t first_new_arc = arcs_.size();
   for (const ArcEstimate& a : frontend_.process()) arcs_.push_back(a);
   frontend_s_ += secondsSince(t0);
+  runBackend({}, first_new_arc, true);
+}
+
+Trajectory3 OfflinePipeline::backendTrajectory() const {
+  if (!backend_) return {};
+  return backend_->sampleTrajectory(config_.backend.output_rate_hz);
+}
+
+void writeSplineJson(const std::string& path, const BSpline& spline) {
+  nlohmann::json j;
+  j["degree"] = spline.degree();
+  j["epoch_ns"] = spline.epochNs();
+  j["epoch_s"] = nsToSec(spline.epochNs());
+  j["valid_from_s"] = spline.validFrom();
+  j["valid_to_s"] = spline.validTo();
+  j["knots_s"] = spline.knots();
+  nlohmann::json cps = nlohmann::json::array();
+  for (const Vec2& p : spline.controlPoints()) cps.push_back({p.x(), p.y()});
+  j["control_points_m"] = cps;
+  nlohmann::json still = nlohmann::json::array();
+  for (const BSpline::Interval& s : spline.standstills()) still.push_back({s.from_s, s.to_s});
+  j["standstills_s"] = still;
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error("cannot write " + path);
+  out << j.dump(2) << "\n";
 }
 
 Trajectory3 OfflinePipeline::frontendTrajectory() const { return integrateArcs(arcs_, secToNs(0.01)); }
@@ -69,8 +111,9 @@ nlohmann::json OfflinePipeline::report() const {
   j["duration_s"] = duration;
   j["events"] = events_;
   j["windows"] = arcs_.size();
-  j["processing_s"] = frontend_s_;
-  j["real_time_factor"] = duration > 0 ? frontend_s_ / duration : 0.0;
+  const double total_s = frontend_s_ + backend_s_;
+  j["processing_s"] = total_s;
+  j["real_time_factor"] = duration > 0 ? total_s / duration : 0.0;
   j["stages"]["frontend"] = {{"processing_s", frontend_s_},
                              {"real_time_factor", duration > 0 ? frontend_s_ / duration : 0.0},
                              {"windows", arcs_.size()},
@@ -80,6 +123,21 @@ nlohmann::json OfflinePipeline::report() const {
                              {"windows_low_events", by_status[3]},
                              {"windows_dropped", st.windows_dropped},
                              {"objective_evaluations", st.evaluations}};
+  if (backend_) {
+    const BackendStats& b = backend_->stats();
+    j["stages"]["backend"] = {{"processing_s", backend_s_},
+                              {"real_time_factor", duration > 0 ? backend_s_ / duration : 0.0},
+                              {"solver_s", b.solver_s},
+                              {"updates", b.updates},
+                              {"volumes", b.volumes},
+                              {"volumes_skipped", b.volumes_skipped},
+                              {"objective_evaluations", b.evaluations},
+                              {"refinements_rejected", b.rejected},
+                              {"resets", b.resets},
+                              {"events_outside_sensor", b.events_outside},
+                              {"events_out_of_order", b.events_out_of_order},
+                              {"control_points", backend_->hasSpline() ? backend_->spline().numControlPoints() : 0}};
+  }
   j["dropped"] = {{"events_outside_sensor", st.events_outside},
                   {"events_out_of_order", st.events_out_of_order},
                   {"resets", st.resets}};
@@ -91,6 +149,10 @@ void OfflinePipeline::writeOutputs(const std::string& out_dir, const nlohmann::j
   makeDirs(out_dir);
   writeTum(out_dir + "/frontend.tum", frontendTrajectory());
   writeArcsCsv(out_dir + "/arcs.csv", arcs_);
+  if (backend_ && backend_->hasSpline()) {
+    writeTum(out_dir + "/backend.tum", backendTrajectory());
+    writeSplineJson(out_dir + "/spline.json", backend_->spline());
+  }
   nlohmann::json j = report();
   for (auto it = extra.begin(); it != extra.end(); ++it) j[it.key()] = it.value();
   std::ofstream(out_dir + "/report.json") << j.dump(2) << "\n";

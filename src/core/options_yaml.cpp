@@ -97,6 +97,31 @@ void loadOptions(const YAML::Node& node, const std::string& section, FrontendOpt
   o->validate();
 }
 
+void loadOptions(const YAML::Node& node, const std::string& section, BackendOptions* o,
+                 std::vector<std::string>* warnings) {
+  Section s(node, section);
+  s.nested("volume");
+  if (s.present()) loadOptions(s.node(), "volume", &o->volume, warnings);
+  s.get("degree", &o->degree);
+  s.get("knot_spacing_s", &o->knot_spacing_s);
+  s.get("tau1_s", &o->tau1_s);
+  s.get("tau2_s", &o->tau2_s);
+  s.get("window_s", &o->window_s);
+  s.get("update_interval_s", &o->update_interval_s);
+  s.get("max_events_per_volume", &o->max_events_per_volume);
+  s.get("min_events_per_volume", &o->min_events_per_volume);
+  s.get("max_iterations", &o->max_iterations);
+  s.get("step_scale_m", &o->step_scale_m);
+  s.get("init_sample_interval_s", &o->init_sample_interval_s);
+  s.get("smoothness_weight", &o->smoothness_weight);
+  s.get("speed_prior_weight", &o->speed_prior_weight);
+  s.get("max_backwards_jump_s", &o->max_backwards_jump_s);
+  s.get("output_rate_hz", &o->output_rate_hz);
+  s.get("seed", &o->seed);
+  s.reportUnknown(warnings);
+  o->validate();
+}
+
 std::string defaultConfigDir() {
   if (const char* env = std::getenv("VWE_VO_CONFIG_DIR")) return env;
   return VWE_VO_CONFIG_DIR;
@@ -128,6 +153,7 @@ PipelineConfig loadPipelineConfig(const std::string& path, const std::string& de
     cfg.T_base_cam = loadTBaseCam(path);
     try {
       loadOptions(root, "frontend", &cfg.frontend, &cfg.warnings);
+      loadOptions(root, "backend", &cfg.backend, &cfg.warnings);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument(path + ": " + e.what());
     }

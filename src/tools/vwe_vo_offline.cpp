@@ -23,9 +23,11 @@ namespace {
 
 const char* kUsage =
     "usage: vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out OUTDIR\n"
-    "                      [--use-odom] [--events-topic T] [--odom-topic T] [--imu-topic T] [--quiet]\n"
-    "  Runs the front-end over recorded events at full speed. Writes OUTDIR/frontend.tum,\n"
-    "  OUTDIR/arcs.csv and OUTDIR/report.json. An ECD folder holds events.txt or events.txt.gz,\n"
+    "                      [--use-odom] [--frontend-only] [--events-topic T] [--odom-topic T] [--imu-topic T]\n"
+    "                      [--quiet]\n"
+    "  Runs the front-end and the back-end over recorded events at full speed. Writes\n"
+    "  OUTDIR/frontend.tum, OUTDIR/arcs.csv, OUTDIR/report.json and (unless --frontend-only)\n"
+    "  OUTDIR/backend.tum and OUTDIR/spline.json. An ECD folder holds events.txt or events.txt.gz,\n"
     "  calib.txt and optionally extrinsics.txt (T_base_cam, overrides the config).\n";
 
 bool fileExists(const std::string& p) {
@@ -69,7 +71,7 @@ class Progress {
 
 int main(int argc, char** argv) {
   std::map<std::string, std::string> args;
-  bool use_odom = false, quiet = false;
+  bool use_odom = false, quiet = false, frontend_only = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
@@ -77,6 +79,8 @@ int main(int argc, char** argv) {
       return 0;
     } else if (a == "--use-odom") {
       use_odom = true;
+    } else if (a == "--frontend-only") {
+      frontend_only = true;
     } else if (a == "--quiet") {
       quiet = true;
     } else if ((a == "--bag" || a == "--ecd" || a == "--config" || a == "--nominal-speed" || a == "--out" ||
@@ -95,6 +99,7 @@ int main(int argc, char** argv) {
   try {
     vwe_vo::PipelineConfig cfg = vwe_vo::loadPipelineConfig(
         args.count("--config") ? args["--config"] : vwe_vo::defaultConfigDir() + "/vwe_vo.yaml");
+    cfg.frontend_only = frontend_only;
     for (const auto& w : cfg.warnings) std::cerr << "vwe_vo_offline: warning: " << w << "\n";
     if (args.count("--nominal-speed")) {
       cfg.frontend.nominal_speed_mps = std::stod(args["--nominal-speed"]);

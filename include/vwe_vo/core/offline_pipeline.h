@@ -3,11 +3,13 @@
 #pragma once
 
 #include <chrono>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "vwe_vo/core/backend.h"
 #include "vwe_vo/core/frontend.h"
 #include "vwe_vo/core/options_yaml.h"
 #include "vwe_vo/core/trajectory_io.h"
@@ -29,25 +31,36 @@ class OfflinePipeline {
   /// Front-end dead reckoning (integrateArcs) of base_link in odom, every 10 ms.
   Trajectory3 frontendTrajectory() const;
 
-  /// Writes frontend.tum, arcs.csv and report.json into out_dir (created if missing).
+  /// Back-end trajectory sampled at backend.output_rate_hz (empty without a back-end).
+  Trajectory3 backendTrajectory() const;
+  /// The back-end (null if config.frontend_only).
+  const Backend* backend() const { return backend_.get(); }
+
+  /// Writes frontend.tum, arcs.csv, report.json and, with the back-end, backend.tum and
+  /// spline.json into out_dir (created if missing).
   void writeOutputs(const std::string& out_dir, const nlohmann::json& extra = {}) const;
   nlohmann::json report() const;
 
   size_t events() const { return events_; }
   int64_t firstTime() const { return t_first_; }
   int64_t lastTime() const { return t_last_; }
-  double processingSeconds() const { return frontend_s_; }
+  double processingSeconds() const { return frontend_s_ + backend_s_; }
   const Frontend& frontend() const { return frontend_; }
 
  private:
   PipelineConfig config_;
   CameraModel camera_;
   Frontend frontend_;
+  std::unique_ptr<Backend> backend_;
   std::vector<ArcEstimate> arcs_;
   size_t events_ = 0;
   int64_t t_first_ = -1, t_last_ = -1;
-  double frontend_s_ = 0.0;
+  double frontend_s_ = 0.0, backend_s_ = 0.0;
+  void runBackend(const EventVector& events, size_t first_new_arc, bool at_end);
 };
+
+/// Writes a spline as JSON: degree, knot epoch, knots [s], control points [m], standstills [s].
+void writeSplineJson(const std::string& path, const BSpline& spline);
 
 /// Writes the arcs as CSV (t_ref, t_start, t_end in s; omega, v, contrast, confidence, events, status).
 void writeArcsCsv(const std::string& path, const std::vector<ArcEstimate>& arcs);

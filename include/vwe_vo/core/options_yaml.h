@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "vwe_vo/core/backend.h"
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/frontend.h"
 #include "vwe_vo/core/math.h"
@@ -20,6 +21,8 @@ void loadOptions(const YAML::Node& node, const std::string& section, VolumeOptio
                  std::vector<std::string>* warnings);
 void loadOptions(const YAML::Node& node, const std::string& section, FrontendOptions* options,
                  std::vector<std::string>* warnings);
+void loadOptions(const YAML::Node& node, const std::string& section, BackendOptions* options,
+                 std::vector<std::string>* warnings);
 
 /// Everything a pipeline run needs from one configuration file.
 struct PipelineConfig {
@@ -27,6 +30,8 @@ struct PipelineConfig {
   CameraCalibration camera;        // from `camera_calibration` (relative to the file's folder)
   Pose3 T_base_cam = Pose3::Identity();
   FrontendOptions frontend;
+  BackendOptions backend;
+  bool frontend_only = false;      // skip the back-end (set by the caller, not the file)
   std::vector<std::string> warnings;  // unknown keys and the like
 };
 

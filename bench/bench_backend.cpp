@@ -1,0 +1,71 @@
+// Throughput of the back-end's multi-volume objective: evaluations (value + gradient w.r.t. the
+// free control points) per second for 10 volumes x 20k events along a spline, on the default
+// grid (half resolution, 30 planes, 2 threads).
+#include <benchmark/benchmark.h>
+
+#include "../test/common/synthetic_events.h"
+#include "vwe_vo/core/backend.h"
+#include "vwe_vo/core/config.h"
+
+using namespace vwe_vo;
+
+namespace {
+const CameraModel& camera() {
+  static const CameraModel cam(
+      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+  return cam;
+}
+
+/// A gentle curve at 0.4 m/s over 3 s as a spline (epoch 0).
+std::shared_ptr<BSpline> curve() {
+  std::vector<int64_t> t;
+  std::vector<Vec2> p;
+  for (double s = 0; s <= 3.0 + 1e-9; s += 0.01) {
+    const double psi = 0.17 * s;
+    t.push_back(secToNs(s));
+    p.emplace_back(0.4 / 0.17 * std::sin(psi), 0.4 / 0.17 * (1 - std::cos(psi)));
+  }
+  BSplineFitOptions o;
+  o.knot_spacing_s = 0.3;
+  return std::make_shared<BSpline>(fitBSpline(t, p, o));
+}
+
+void BM_MultiVolumeObjective(benchmark::State& state) {
+  const int num_volumes = int(state.range(0));
+  const int events_per_volume = int(state.range(1));
+  const bool with_gradient = state.range(2) != 0;
+  const auto& c = camera().calibration();
+  ProjectiveVolume volume(VolumeOptions(), c.width, c.height, c.fx, c.fy, c.cx, c.cy);
+  VweObjective vwe(camera(), &volume);
+  auto truth = curve();
+  std::vector<BackendVolume> volumes;
+  for (int i = 0; i < num_volumes; ++i) {
+    const int64_t t_ref = secToNs(0.3 + 2.4 * (i + 0.5) / num_volumes);
+    const BSplineCameraModel model(truth, defaultTBaseCam(), t_ref);
+    volumes.push_back({t_ref, synthetic::randomPointEvents(camera(), model, events_per_volume,
+                                                           i + 1, 0.2, 2000)});
+  }
+  auto spline = std::make_shared<BSpline>(*truth);
+  MultiVolumeObjective objective(spline, defaultTBaseCam(), 4, volumes, &vwe);
+  Eigen::VectorXd x = objective.freeParams();
+  x.array() += 0.01;
+  Eigen::VectorXd g;
+  for (auto _ : state)
+    benchmark::DoNotOptimize(objective.evaluate(x, with_gradient ? &g : nullptr));
+  state.counters["evals_per_s"] =
+      benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["events_per_s"] = benchmark::Counter(
+      double(state.iterations()) * num_volumes * events_per_volume, benchmark::Counter::kIsRate);
+  state.counters["free_params"] = double(objective.numFree());
+}
+BENCHMARK(BM_MultiVolumeObjective)
+    ->ArgNames({"volumes", "events", "gradient"})
+    ->Args({10, 20000, 1})
+    ->Args({10, 20000, 0})
+    ->Args({10, 4000, 1})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,197 @@
+// The back-end (paper Sec. III-C): a planar B-spline of base_link refined over a sliding window
+// by maximising the summed variance of M Volumes of Warped Events (paper eq. 5), initialised
+// from the front-end's dead-reckoned arcs. Synchronous and ROS-free.
+#pragma once
+
+#include <ceres/first_order_function.h>
+
+#include <cstdint>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "vwe_vo/core/ackermann_arc.h"
+#include "vwe_vo/core/bspline.h"
+#include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/events.h"
+#include "vwe_vo/core/frontend.h"
+#include "vwe_vo/core/projective_volume.h"
+#include "vwe_vo/core/trajectory_io.h"
+#include "vwe_vo/core/vwe_objective.h"
+
+namespace vwe_vo {
+
+struct BackendOptions {
+  VolumeOptions volume;                  // the VWE grid of every back-end volume
+  int degree = 3;                        // spline degree p (1..5)
+  double knot_spacing_s = 0.3;           // uniform knot span [s]
+  double tau1_s = 0.2;                   // spacing of the volume reference times [s]
+  double tau2_s = 0.4;                   // events span of one volume [s], > tau1_s
+  double window_s = 2.0;                 // length of the optimised sliding window [s]
+  double update_interval_s = 1.0;        // new arcs that trigger a refinement [s]
+  size_t max_events_per_volume = 4000;   // events voted per volume (uniform subsampling)
+  size_t min_events_per_volume = 300;    // fewer events: the volume is skipped [events]
+  int max_iterations = 20;               // LBFGS iterations per refinement
+  double step_scale_m = 0.02;            // solver unit of a control-point coordinate [m]
+  double init_sample_interval_s = 0.05;  // spacing of the dead-reckoned poses fitted [s]
+  double smoothness_weight = 0.05;       // second-difference prior of the initial fit [1]
+  double speed_prior_weight = 10.0;      // relative-speed prior vs the normalised VWE (0: off) [1]
+  double max_backwards_jump_s = 0.05;    // arcs older than newest - this reset the back-end [s]
+  double output_rate_hz = 20.0;          // rate of the sampled trajectory (backend.tum) [Hz]
+  uint64_t seed = 1;                     // subsampling seed
+  void validate() const;                 // throws std::invalid_argument naming the field
+};
+
+struct BackendStats {
+  size_t events_in = 0;
+  size_t events_outside = 0;       // outside the sensor: dropped
+  size_t events_out_of_order = 0;  // older than the newest buffered event: dropped
+  size_t arcs_in = 0;
+  size_t updates = 0;          // refinements run
+  size_t volumes = 0;          // volumes optimised (summed over refinements)
+  size_t volumes_skipped = 0;  // in a standstill or with too few events
+  size_t evaluations = 0;      // objective + gradient evaluations
+  size_t rejected = 0;         // refinements whose result was worse than the start (reverted)
+  size_t resets = 0;
+  double solver_s = 0.0;   // wall time in the solver [s]
+  double last_gain = 0.0;  // objective ratio final / initial of the last refinement
+};
+
+/// One volume of the multi-volume objective: reference time and its (subsampled) events.
+struct BackendVolume {
+  int64_t t_ref_ns = 0;
+  EventVector events;
+};
+
+/// Sum of the VWE variances of several volumes (paper eq. 5) as a function of the control
+/// points [first_free, n) of a shared spline (the older ones stay fixed). Parameters are the free
+/// control points stacked [x, y, ...] in metres.
+class MultiVolumeObjective {
+ public:
+  /// spline, objective must outlive this; the spline's free control points are overwritten by
+  /// every evaluation.
+  MultiVolumeObjective(std::shared_ptr<BSpline> spline, const Pose3& T_base_cam, int first_free,
+                       std::vector<BackendVolume> volumes, VweObjective* objective);
+  int numFree() const { return 2 * (spline_->numControlPoints() - first_free_); }
+  int firstFree() const { return first_free_; }
+  const std::vector<BackendVolume>& volumes() const { return volumes_; }
+  /// The free control points currently in the spline.
+  Eigen::VectorXd freeParams() const;
+  /// Sum of variances at params; gradient (if not null) w.r.t. the free parameters.
+  double evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient);
+  size_t evaluations() const { return evaluations_; }
+
+ private:
+  std::shared_ptr<BSpline> spline_;
+  Pose3 T_base_cam_;
+  int first_free_;
+  std::vector<BackendVolume> volumes_;
+  VweObjective* objective_;
+  Eigen::VectorXd full_gradient_;
+  size_t evaluations_ = 0;
+};
+
+/// Soft prior that keeps the speed |c'(u)| of the free part of the spline near target speeds
+/// (the scale the front-end's v gave): weight / K * sum_k ((|c'(u_k)| - v_k) / v_k)^2. The VWE
+/// fixes the scale only through the overlap of the volumes, and rays beyond the depth range bias
+/// it (shrinking the path brings far points into the grid).
+class SpeedPrior {
+ public:
+  /// Targets are the spline's current speeds at u_k (samples with speed below min_speed_mps or in
+  /// a standstill are left out).
+  SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free, const std::vector<double>& u,
+             double weight, double min_speed_mps = 0.05);
+  /// Value at the spline's current control points; gradient (if not null) w.r.t. the free ones.
+  double evaluate(Eigen::VectorXd* gradient) const;
+  size_t numSamples() const { return u_.size(); }
+
+ private:
+  std::shared_ptr<const BSpline> spline_;
+  int first_free_;
+  std::vector<double> u_, v_;
+  double weight_;
+};
+
+/// Ceres view of a MultiVolumeObjective: minimises -sum(var)/sum(var at x0) (+ a SpeedPrior) over
+/// x = (params - params0) / step_scale, so that the start is x = 0 with cost -1.
+class MultiVolumeCost : public ceres::FirstOrderFunction {
+ public:
+  MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0, double step_scale,
+                  double normaliser, const SpeedPrior* prior = nullptr);
+  bool Evaluate(const double* x, double* cost, double* gradient) const override;
+  int NumParameters() const override { return static_cast<int>(params0_.size()); }
+  Eigen::VectorXd params(const double* x) const;
+
+ private:
+  MultiVolumeObjective* objective_;
+  Eigen::VectorXd params0_;
+  double step_scale_, normaliser_;
+  const SpeedPrior* prior_;
+};
+
+/// Least squares of the control points [first, n) of `spline` to positions p_odom at spline
+/// times u (the others fixed), with a second-difference smoothness prior of weight w on the free
+/// points (it determines points the samples barely touch). Throws std::invalid_argument on sizes.
+void fitControlPoints(BSpline* spline, int first, const std::vector<double>& u,
+                      const std::vector<Vec2>& p_odom, double smoothness_weight);
+
+/// The sliding-window back-end. The spline has uniform, unclamped knots (k - p) * knot_spacing_s
+/// from the first arc's start: extending it appends knots and control points without moving the
+/// curve already refined (Piegl & Tiller placement would move every knot as data arrives). Each
+/// update (every update_interval_s of new arcs): the control points whose support reaches past
+/// the previous update are refit by least squares to the refined curve up to there and, beyond,
+/// to the front-end's dead reckoning composed onto the refined pose there; then every control
+/// point whose support ends before the window (and always the first p + 1: origin, heading and
+/// scale) is fixed and the others maximise the summed variance of the volumes in the window
+/// (LBFGS on the analytic gradient, plus the SpeedPrior). Volumes whose reference time is in a
+/// standstill are skipped; STANDSTILL arcs become held intervals of the spline.
+class Backend {
+ public:
+  Backend(const BackendOptions& options, const CameraModel& camera, const Pose3& T_base_cam);
+
+  const BackendOptions& options() const { return options_; }
+  /// Time-ordered events; events outside the sensor or out of order are dropped and counted,
+  /// a jump back by more than max_backwards_jump_s resets the back-end. Events older than the
+  /// window are dropped as time advances.
+  void addEvents(const EventVector& events);
+  /// Front-end arcs in time order; an arc older than the newest by more than
+  /// max_backwards_jump_s resets the back-end (returns true).
+  bool addArc(const ArcEstimate& arc);
+  /// Runs a refinement if update_interval_s of new arcs have arrived; returns true if it did.
+  bool process();
+  /// Extends and refines up to the newest arc (end of data).
+  void finish();
+
+  bool hasSpline() const { return spline_ != nullptr; }
+  /// The refined spline (valid if hasSpline()).
+  const BSpline& spline() const { return *spline_; }
+  /// Newest time the spline is initialised and refined up to.
+  int64_t processedUntil() const { return processed_ns_; }
+  /// Poses of base_link in odom every 1/rate_hz from the first arc to processedUntil().
+  Trajectory3 sampleTrajectory(double rate_hz) const;
+  const BackendStats& stats() const { return stats_; }
+  /// Events held for the next refinement (bounded by the window, not the sequence).
+  size_t bufferedEvents() const { return buffer_.size(); }
+  void reset();
+
+ private:
+  void update(int64_t t_new_ns);
+  void extendSpline(int64_t t_new_ns);
+  std::vector<BSpline::Interval> standstillIntervals(int64_t epoch_ns) const;
+  void refine(int64_t t_new_ns);
+
+  BackendOptions options_;
+  const CameraModel& camera_;
+  Pose3 T_base_cam_;
+  ProjectiveVolume volume_;
+  VweObjective objective_;
+  EventBuffer buffer_;
+  std::vector<std::pair<int64_t, int64_t>> standstills_ns_;  // merged STANDSTILL arcs
+  std::unique_ptr<ArcChain> chain_;                          // front-end dead reckoning
+  int64_t newest_arc_ns_ = -1;
+  int64_t processed_ns_ = -1;
+  std::shared_ptr<BSpline> spline_;
+  BackendStats stats_;
+};
+
+}  // namespace vwe_vo

@@ -1,0 +1,418 @@
+#include "vwe_vo/core/backend.h"
+
+#include <ceres/gradient_problem.h>
+#include <ceres/gradient_problem_solver.h>
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace vwe_vo {
+
+void BackendOptions::validate() const {
+  auto fail = [](const std::string& m) { throw std::invalid_argument("BackendOptions: " + m); };
+  volume.validate();
+  if (!(degree >= 1 && degree <= 5)) fail("degree must be in [1, 5]");
+  if (!(knot_spacing_s >= 0.02 && knot_spacing_s <= 10))
+    fail("knot_spacing_s must be in [0.02, 10] s");
+  if (!(tau1_s > 0.005 && tau1_s <= 10)) fail("tau1_s must be in (0.005, 10] s");
+  if (!(tau2_s > tau1_s && tau2_s <= 10)) fail("tau2_s must be in (tau1_s, 10] s");
+  if (!(window_s >= tau2_s && window_s <= 60)) fail("window_s must be in [tau2_s, 60] s");
+  if (!(update_interval_s > 0 && update_interval_s <= window_s))
+    fail("update_interval_s must be in (0, window_s] s");
+  if (max_events_per_volume < 100) fail("max_events_per_volume must be at least 100");
+  if (min_events_per_volume > max_events_per_volume)
+    fail("min_events_per_volume must be <= max_events_per_volume");
+  if (max_iterations < 0) fail("max_iterations must be >= 0");
+  if (!(step_scale_m > 0 && step_scale_m <= 1)) fail("step_scale_m must be in (0, 1] m");
+  if (!(init_sample_interval_s > 0 && init_sample_interval_s <= knot_spacing_s))
+    fail("init_sample_interval_s must be in (0, knot_spacing_s] s");
+  if (!(smoothness_weight >= 0 && std::isfinite(smoothness_weight)))
+    fail("smoothness_weight must be >= 0");
+  if (!(speed_prior_weight >= 0 && std::isfinite(speed_prior_weight)))
+    fail("speed_prior_weight must be >= 0");
+  if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
+  if (!(output_rate_hz > 0 && output_rate_hz <= 10000))
+    fail("output_rate_hz must be in (0, 10000] Hz");
+}
+
+// ---------------------------------------------------------------------------------------------
+
+MultiVolumeObjective::MultiVolumeObjective(std::shared_ptr<BSpline> spline, const Pose3& T_base_cam,
+                                           int first_free, std::vector<BackendVolume> volumes,
+                                           VweObjective* objective)
+    : spline_(std::move(spline)),
+      T_base_cam_(T_base_cam),
+      first_free_(first_free),
+      volumes_(std::move(volumes)),
+      objective_(objective) {
+  if (first_free_ < 0 || first_free_ > spline_->numControlPoints())
+    throw std::invalid_argument("MultiVolumeObjective: first_free " + std::to_string(first_free_) +
+                                " outside [0, " + std::to_string(spline_->numControlPoints()) +
+                                "]");
+}
+
+Eigen::VectorXd MultiVolumeObjective::freeParams() const {
+  Eigen::VectorXd x(numFree());
+  for (int i = first_free_; i < spline_->numControlPoints(); ++i)
+    x.segment<2>(2 * (i - first_free_)) = spline_->controlPoints()[i];
+  return x;
+}
+
+double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient) {
+  if (params.size() != numFree())
+    throw std::invalid_argument("MultiVolumeObjective: " + std::to_string(params.size()) +
+                                " parameters, expected " + std::to_string(numFree()));
+  for (int i = first_free_; i < spline_->numControlPoints(); ++i)
+    spline_->setControlPoint(i, params.segment<2>(2 * (i - first_free_)));
+  ++evaluations_;
+  if (gradient) gradient->setZero(numFree());
+  double sum = 0.0;
+  for (const BackendVolume& v : volumes_) {
+    const BSplineCameraModel model(spline_, T_base_cam_, v.t_ref_ns);
+    const VweEvaluation e =
+        objective_->evaluate(v.events, model, gradient ? &full_gradient_ : nullptr);
+    sum += e.variance;
+    if (gradient) *gradient += full_gradient_.tail(numFree());
+  }
+  return sum;
+}
+
+SpeedPrior::SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free,
+                       const std::vector<double>& u, double weight, double min_speed_mps)
+    : spline_(std::move(spline)), first_free_(first_free), weight_(weight) {
+  for (double uk : u) {
+    bool still = false;
+    for (const auto& s : spline_->standstills()) still = still || (uk >= s.from_s && uk <= s.to_s);
+    const double v = spline_->velocity(uk).norm();
+    if (still || !(v >= min_speed_mps)) continue;
+    // Only samples the free control points move.
+    if (spline_->basis(uk, 0).first + spline_->degree() < first_free_) continue;
+    u_.push_back(uk);
+    v_.push_back(v);
+  }
+}
+
+double SpeedPrior::evaluate(Eigen::VectorXd* gradient) const {
+  const int num_free = 2 * (spline_->numControlPoints() - first_free_);
+  if (gradient) gradient->setZero(num_free);
+  if (u_.empty() || weight_ == 0.0) return 0.0;
+  const double w = weight_ / double(u_.size());
+  double f = 0.0;
+  for (size_t k = 0; k < u_.size(); ++k) {
+    const BasisDerivatives b = spline_->basis(u_[k], 1);
+    Vec2 c1 = Vec2::Zero();
+    for (int j = 0; j <= spline_->degree(); ++j)
+      c1 += b.values(1, j) * spline_->controlPoints()[b.first + j];
+    const double s = c1.norm();
+    const double r = (s - v_[k]) / v_[k];
+    f += w * r * r;
+    if (!gradient || !(s > 0)) continue;
+    const Vec2 ds_dc1 = c1 / s;
+    for (int j = 0; j <= spline_->degree(); ++j) {
+      const int i = b.first + j;
+      if (i < first_free_) continue;
+      gradient->segment<2>(2 * (i - first_free_)) += (2 * w * r / v_[k] * b.values(1, j)) * ds_dc1;
+    }
+  }
+  return f;
+}
+
+MultiVolumeCost::MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0,
+                                 double step_scale, double normaliser, const SpeedPrior* prior)
+    : objective_(objective),
+      params0_(std::move(params0)),
+      step_scale_(step_scale),
+      normaliser_(normaliser),
+      prior_(prior) {}
+
+Eigen::VectorXd MultiVolumeCost::params(const double* x) const {
+  return params0_ + step_scale_ * Eigen::Map<const Eigen::VectorXd>(x, params0_.size());
+}
+
+bool MultiVolumeCost::Evaluate(const double* x, double* cost, double* gradient) const {
+  Eigen::VectorXd g;
+  const double f = objective_->evaluate(params(x), gradient ? &g : nullptr);
+  if (!std::isfinite(f)) return false;
+  *cost = -f / normaliser_;
+  if (gradient) {
+    if (!g.allFinite()) return false;
+    Eigen::Map<Eigen::VectorXd>(gradient, params0_.size()) = (-step_scale_ / normaliser_) * g;
+  }
+  if (prior_) {
+    Eigen::VectorXd gp;
+    *cost +=
+        prior_->evaluate(gradient ? &gp : nullptr);  // the objective has set the control points
+    if (gradient) Eigen::Map<Eigen::VectorXd>(gradient, params0_.size()) += step_scale_ * gp;
+  }
+  return std::isfinite(*cost);
+}
+
+// ---------------------------------------------------------------------------------------------
+
+void fitControlPoints(BSpline* spline, int first, const std::vector<double>& u,
+                      const std::vector<Vec2>& p_odom, double smoothness_weight) {
+  const int n = spline->numControlPoints();
+  if (u.size() != p_odom.size())
+    throw std::invalid_argument("fitControlPoints: " + std::to_string(u.size()) + " times but " +
+                                std::to_string(p_odom.size()) + " positions");
+  if (first < 0 || first >= n)
+    throw std::invalid_argument("fitControlPoints: first " + std::to_string(first) +
+                                " outside [0, " + std::to_string(n) + ")");
+  const int m = n - first;
+  const std::vector<Vec2>& P = spline->controlPoints();
+  Eigen::MatrixXd AtA = Eigen::MatrixXd::Zero(m, m);
+  Eigen::MatrixXd Atb = Eigen::MatrixXd::Zero(m, 2);
+  // One row: sum_j a_j P_{idx_j} = b.
+  auto addRow = [&](const std::vector<std::pair<int, double>>& row, Vec2 b) {
+    for (const auto& c : row)
+      if (c.first < first) b -= c.second * P[c.first];
+    for (const auto& ci : row) {
+      if (ci.first < first) continue;
+      Atb.row(ci.first - first) += ci.second * b.transpose();
+      for (const auto& cj : row)
+        if (cj.first >= first) AtA(ci.first - first, cj.first - first) += ci.second * cj.second;
+    }
+  };
+  std::vector<std::pair<int, double>> row;
+  for (size_t k = 0; k < u.size(); ++k) {
+    const BasisDerivatives b = spline->basis(u[k], 0);
+    row.clear();
+    for (int j = 0; j <= spline->degree(); ++j) row.emplace_back(b.first + j, b.values(0, j));
+    addRow(row, p_odom[k]);
+  }
+  for (int i = std::max(1, first - 1); i + 1 < n; ++i) {
+    row = {{i - 1, smoothness_weight}, {i, -2 * smoothness_weight}, {i + 1, smoothness_weight}};
+    addRow(row, Vec2::Zero());
+  }
+  AtA.diagonal().array() += 1e-9 * (1.0 + AtA.diagonal().maxCoeff());
+  const Eigen::MatrixXd X = AtA.ldlt().solve(Atb);
+  for (int i = 0; i < m; ++i) spline->setControlPoint(first + i, X.row(i).transpose());
+}
+
+// ---------------------------------------------------------------------------------------------
+
+Backend::Backend(const BackendOptions& options, const CameraModel& camera, const Pose3& T_base_cam)
+    : options_(options),
+      camera_(camera),
+      T_base_cam_(T_base_cam),
+      volume_((options.validate(), options.volume), camera.width(), camera.height(),
+              camera.calibration().fx, camera.calibration().fy, camera.calibration().cx,
+              camera.calibration().cy),
+      objective_(camera_, &volume_) {}
+
+void Backend::reset() {
+  buffer_.clear();
+  standstills_ns_.clear();
+  chain_.reset();
+  newest_arc_ns_ = processed_ns_ = -1;
+  spline_.reset();
+  ++stats_.resets;
+}
+
+void Backend::addEvents(const EventVector& events) {
+  if (events.empty()) return;
+  stats_.events_in += events.size();
+  if (!buffer_.empty() &&
+      events.front().t_ns < buffer_.newestTime() - secToNs(options_.max_backwards_jump_s))
+    reset();
+  for (const PixelEvent& e : events) {
+    if (!camera_.inside(e.x, e.y))
+      ++stats_.events_outside;
+    else if (!buffer_.push(e))
+      ++stats_.events_out_of_order;
+  }
+  // Bounded memory also when no arcs arrive: the next refinement never looks further back.
+  const int64_t keep_ns = secToNs(options_.window_s + options_.tau2_s + options_.update_interval_s);
+  if (!buffer_.empty() && buffer_.newestTime() - buffer_.oldestTime() > keep_ns + keep_ns / 4)
+    buffer_.dropBefore(buffer_.newestTime() - keep_ns);
+}
+
+bool Backend::addArc(const ArcEstimate& arc) {
+  ++stats_.arcs_in;
+  bool was_reset = false;
+  if (chain_ && arc.t_end_ns < newest_arc_ns_ - secToNs(options_.max_backwards_jump_s)) {
+    reset();
+    was_reset = true;
+  }
+  if (!chain_) chain_ = std::make_unique<ArcChain>(Pose3::Identity(), arc.t_start_ns);
+  if (arc.t_end_ns <= chain_->endTime()) return was_reset;
+  const bool still = arc.status == ArcStatus::kStandstill;
+  const double omega = still ? 0.0 : arc.omega, v = still ? 0.0 : arc.v;
+  const int64_t from = chain_->endTime();
+  chain_->append(std::isfinite(omega) ? omega : 0.0, std::isfinite(v) ? v : 0.0, arc.t_end_ns);
+  if (still) {
+    if (!standstills_ns_.empty() && standstills_ns_.back().second >= from)
+      standstills_ns_.back().second = arc.t_end_ns;
+    else
+      standstills_ns_.emplace_back(from, arc.t_end_ns);
+  }
+  newest_arc_ns_ = arc.t_end_ns;
+  return was_reset;
+}
+
+bool Backend::process() {
+  if (!chain_) return false;
+  const int64_t from = processed_ns_ < 0 ? chain_->startTime() : processed_ns_;
+  if (dtSec(newest_arc_ns_, from) < options_.update_interval_s) return false;
+  update(newest_arc_ns_);
+  return true;
+}
+
+void Backend::finish() {
+  if (!chain_ || newest_arc_ns_ <= processed_ns_) return;
+  if (dtSec(newest_arc_ns_, chain_->startTime()) < 2 * options_.init_sample_interval_s) return;
+  update(newest_arc_ns_);
+}
+
+void Backend::update(int64_t t_new_ns) {
+  extendSpline(t_new_ns);
+  refine(t_new_ns);
+  processed_ns_ = t_new_ns;
+  ++stats_.updates;
+  // Bounded memory: events before the next window cannot be used again.
+  const int64_t keep_from = t_new_ns - secToNs(options_.window_s + options_.tau2_s);
+  if (!buffer_.empty() && buffer_.oldestTime() < keep_from) buffer_.dropBefore(keep_from);
+}
+
+std::vector<BSpline::Interval> Backend::standstillIntervals(int64_t epoch_ns) const {
+  std::vector<BSpline::Interval> out;
+  for (const auto& s : standstills_ns_)
+    out.push_back({dtSec(s.first, epoch_ns), dtSec(s.second, epoch_ns)});
+  return out;
+}
+
+void Backend::extendSpline(int64_t t_new_ns) {
+  const int p = options_.degree;
+  const double dk = options_.knot_spacing_s;
+  const int64_t epoch = spline_ ? spline_->epochNs() : chain_->startTime();
+  const double u_new = dtSec(t_new_ns, epoch);
+  // Uniform knots (k - p) dk, unclamped: extending appends knots and control points and leaves
+  // the existing curve on the old domain untouched.
+  const int spans = std::max(1, int(std::ceil(u_new / dk - 1e-9)));
+  const int n = spans + p;
+  std::vector<double> knots(n + p + 1);
+  for (int k = 0; k <= n + p; ++k) knots[k] = (k - p) * dk;
+
+  std::vector<Vec2> P(n, Vec2::Zero());
+  int first = 0;
+  Pose3 T_anchor = Pose3::Identity();  // maps the front-end's odom into the spline's odom
+  double u_old = 0.0;
+  if (spline_) {
+    u_old = spline_->toSplineTime(processed_ns_);
+    const int n_old = spline_->numControlPoints();
+    for (int i = 0; i < std::min(n, n_old); ++i) P[i] = spline_->controlPoints()[i];
+    // Refit every control point whose support reaches past u_old (the unrefined part).
+    while (first < n_old && knots[first + p + 1] <= u_old) ++first;
+    first = std::min(first, n - 1);
+    T_anchor = spline_->T_odom_base(u_old) * chain_->T_odom_base(processed_ns_).inverse();
+  }
+  auto next = std::make_shared<BSpline>(p, knots, P, epoch);
+  next->setStandstills(standstillIntervals(epoch));
+
+  std::vector<double> u;
+  std::vector<Vec2> pos;
+  const double u_from = std::max(0.0, knots[first]), u_to = next->validTo();
+  const int samples =
+      std::max(2, int(std::ceil((u_to - u_from) / options_.init_sample_interval_s)) + 1);
+  for (int k = 0; k < samples; ++k) {
+    const double uk = u_from + (u_to - u_from) * k / (samples - 1);
+    u.push_back(uk);
+    if (spline_ && uk <= u_old)
+      pos.push_back(spline_->position(uk));
+    else
+      pos.push_back((T_anchor * chain_->T_odom_base(epoch + secToNs(uk))).translation().head<2>());
+  }
+  fitControlPoints(next.get(), first, u, pos, options_.smoothness_weight);
+  spline_ = next;
+}
+
+void Backend::refine(int64_t t_new_ns) {
+  const int p = options_.degree;
+  const double u_new = spline_->toSplineTime(t_new_ns);
+  const double u_window = std::max(spline_->validFrom(), u_new - options_.window_s);
+  // Control points whose support ends before the window are fixed, and so are the first p + 1
+  // (the first segment from the front-end: origin, heading and scale).
+  int first_free = p + 1;
+  while (first_free < spline_->numControlPoints() &&
+         spline_->knots()[first_free + p + 1] <= u_window)
+    ++first_free;
+  if (first_free >= spline_->numControlPoints() || options_.max_iterations == 0) return;
+
+  const std::vector<BSpline::Interval>& still = spline_->standstills();
+  auto inStandstill = [&](double u) {
+    for (const auto& s : still)
+      if (u >= s.from_s && u <= s.to_s) return true;
+    return false;
+  };
+  std::vector<BackendVolume> volumes;
+  const double half = 0.5 * options_.tau2_s;
+  for (double ur = u_new - half; ur - half >= u_window - 1e-9; ur -= options_.tau1_s) {
+    if (inStandstill(ur)) {
+      ++stats_.volumes_skipped;
+      continue;
+    }
+    const int64_t t_ref = spline_->epochNs() + secToNs(ur);
+    EventVector ev = buffer_.window(t_ref - secToNs(half), t_ref + secToNs(half));
+    if (ev.size() < options_.min_events_per_volume) {
+      ++stats_.volumes_skipped;
+      continue;
+    }
+    volumes.push_back({t_ref, subsampleEvents(ev, options_.max_events_per_volume,
+                                              options_.seed + volumes.size())});
+  }
+  if (volumes.empty()) return;
+  stats_.volumes += volumes.size();
+
+  MultiVolumeObjective objective(spline_, T_base_cam_, first_free, std::move(volumes), &objective_);
+  const Eigen::VectorXd params0 = objective.freeParams();
+  const double f0 = objective.evaluate(params0, nullptr);
+  if (!(f0 > 0) || !std::isfinite(f0)) return;
+
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<double> u_prior;
+  for (double u = u_window; u <= u_new; u += options_.init_sample_interval_s) u_prior.push_back(u);
+  const SpeedPrior prior(spline_, first_free, u_prior, options_.speed_prior_weight);
+  auto* cost = new MultiVolumeCost(&objective, params0, options_.step_scale_m, f0,
+                                   options_.speed_prior_weight > 0 ? &prior : nullptr);
+  ceres::GradientProblem problem(cost);  // takes ownership
+  ceres::GradientProblemSolver::Options so;
+  so.line_search_direction_type = ceres::LBFGS;
+  so.max_num_iterations = options_.max_iterations;
+  so.function_tolerance = 1e-6;
+  so.gradient_tolerance = 1e-8;
+  so.parameter_tolerance = 1e-6;
+  so.logging_type = ceres::SILENT;
+  ceres::GradientProblemSolver::Summary summary;
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(params0.size());
+  ceres::Solve(so, problem, x.data(), &summary);
+  const Eigen::VectorXd params = cost->params(x.data());
+  const double f1 = objective.evaluate(params, nullptr);
+  stats_.solver_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  stats_.evaluations += objective.evaluations();
+  // Accept what lowered the total cost (VWE and speed prior); anything else is reverted.
+  if (!(summary.final_cost <= summary.initial_cost) || !std::isfinite(f1) || !params.allFinite()) {
+    ++stats_.rejected;
+    objective.evaluate(params0, nullptr);  // restores the start
+    stats_.last_gain = 1.0;
+  } else {
+    stats_.last_gain = f1 / f0;
+  }
+}
+
+Trajectory3 Backend::sampleTrajectory(double rate_hz) const {
+  Trajectory3 out;
+  if (!spline_ || !(rate_hz > 0)) return out;
+  const int64_t t0 = spline_->epochNs(), t1 = processed_ns_;
+  const int64_t step = std::max<int64_t>(1, secToNs(1.0 / rate_hz));
+  for (int64_t t = t0; t <= t1; t += step)
+    out.push_back({t, spline_->T_odom_base(spline_->toSplineTime(t))});
+  if (out.empty() || out.back().t_ns < t1)
+    out.push_back({t1, spline_->T_odom_base(spline_->toSplineTime(t1))});
+  return out;
+}
+
+}  // namespace vwe_vo

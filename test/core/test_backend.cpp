@@ -1,0 +1,387 @@
+// The back-end against independent truths: central finite differences of the multi-volume
+// gradient, a known spline trajectory recovered from events starting from biased front-end arcs,
+// finite poses through a standstill, and option validation.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+
+#include "../common/synthetic_events.h"
+#include "vwe_vo/core/backend.h"
+#include "vwe_vo/core/offline_pipeline.h"
+#include "vwe_vo/core/options_yaml.h"
+
+using namespace vwe_vo;
+
+namespace {
+
+constexpr int64_t kEpoch = 100000000000LL;     // 100 s
+constexpr double kDuration = 3.2;              // [s]
+constexpr double kSpeed = 0.4;                 // [m/s]
+constexpr int kFdEvents = 40000;               // events per volume of the gradient check
+constexpr double kYawRate = 10.0 * kPi / 180;  // [rad/s]
+
+CameraCalibration testCalibration() {
+  CameraCalibration c;
+  c.width = 346;
+  c.height = 260;
+  c.fx = c.fy = 250;
+  c.cx = 173;
+  c.cy = 130;
+  c.distortion = {-0.3, 0.1, 0, 0, 0};
+  return c;
+}
+
+Pose3 testExtrinsics() {
+  return makePose(R_base_opticalFrame(), Vec3(0.1, 0.0, 0.3));
+}
+
+/// Truth: a gentle curve (yaw rate 10 deg/s varying by +-4 deg/s) at 0.4 m/s, as a spline.
+std::shared_ptr<BSpline> truthSpline() {
+  std::vector<int64_t> t;
+  std::vector<Vec2> p;
+  Vec2 c(0, 0);
+  double psi = 0.0;
+  const double dt = 0.001;
+  for (double s = 0; s <= kDuration + 1e-9; s += dt) {
+    t.push_back(kEpoch + secToNs(s));
+    p.push_back(c);
+    const double w = kYawRate + 0.07 * std::sin(2.0 * s);
+    c += kSpeed * dt * Vec2(std::cos(psi + 0.5 * w * dt), std::sin(psi + 0.5 * w * dt));
+    psi += w * dt;
+  }
+  BSplineFitOptions o;
+  o.knot_spacing_s = 0.3;
+  return std::make_shared<BSpline>(fitBSpline(t, p, o));
+}
+
+BackendOptions testOptions() {
+  BackendOptions o;
+  o.volume.num_planes = 20;
+  o.volume.z_min_m = 0.8;
+  o.volume.z_max_m = 10;
+  o.max_events_per_volume = 3000;
+  return o;
+}
+
+struct Scene {
+  CameraModel cam{testCalibration()};
+  std::shared_ptr<BSpline> truth = truthSpline();
+  EventVector events;
+  /// n events over [t_mid - half_span, t_mid + half_span] (by default the whole truth).
+  explicit Scene(int n = 60000, double t_mid_s = 0.5 * kDuration,
+                 double half_span_s = 0.5 * kDuration - 1e-3, int num_points = 1500) {
+    const BSplineCameraModel model(truth, testExtrinsics(), kEpoch + secToNs(t_mid_s));
+    events = synthetic::randomPointEvents(cam, model, n, 7, half_span_s, num_points);
+  }
+};
+
+/// Front-end-like arcs every 0.1 s from the truth, with a yaw-rate bias [rad/s].
+std::vector<ArcEstimate> truthArcs(const BSpline& truth, double bias) {
+  std::vector<ArcEstimate> arcs;
+  for (double s = 0; s + 0.1 <= kDuration + 1e-9; s += 0.1) {
+    ArcEstimate a;
+    a.t_start_ns = kEpoch + secToNs(s);
+    a.t_end_ns = kEpoch + secToNs(s + 0.1);
+    a.t_ref_ns = (a.t_start_ns + a.t_end_ns) / 2;
+    a.omega = wrapAngle(truth.heading(s + 0.1) - truth.heading(s)) / 0.1 + bias;
+    a.v = (truth.position(s + 0.1) - truth.position(s)).norm() / 0.1;
+    arcs.push_back(a);
+  }
+  return arcs;
+}
+
+double headingChangeError(const BSpline& est, const BSpline& truth, double u0, double u1) {
+  const double d_est = wrapAngle(est.heading(est.toSplineTime(kEpoch) + u1) -
+                                 est.heading(est.toSplineTime(kEpoch) + u0));
+  const double d_true = wrapAngle(truth.heading(u1) - truth.heading(u0));
+  return std::abs(wrapAngle(d_est - d_true));
+}
+
+}  // namespace
+
+TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
+  Scene sc(kFdEvents, 1.6, 0.45, 4000);
+  // A wide margin keeps every vote inside the grid: a vote leaving the grid vanishes
+  // discontinuously, which the analytic gradient cannot see (10-40 % per component with the
+  // default 8 px margin on this scene).
+  VolumeOptions vo = testOptions().volume;
+  vo.margin_px = 100;
+  ProjectiveVolume volume(vo, sc.cam.width(), sc.cam.height(), 250, 250, 173, 130);
+  VweObjective vwe(sc.cam, &volume);
+  // A perturbed copy of the truth, three volumes around the middle.
+  auto spline = std::make_shared<BSpline>(*sc.truth);
+  for (int i = 0; i < spline->numControlPoints(); ++i)
+    spline->setControlPoint(
+        i, spline->controlPoints()[i] + 0.02 * Vec2(std::sin(3.0 * i), std::cos(5.0 * i)));
+  std::vector<BackendVolume> volumes;
+  EventBuffer buffer;
+  buffer.push(sc.events);
+  for (double u : {1.3, 1.6, 1.9}) {
+    const int64_t t = kEpoch + secToNs(u);
+    volumes.push_back(
+        {t, subsampleEvents(buffer.window(t - secToNs(0.2), t + secToNs(0.2)), kFdEvents, 1)});
+  }
+  const int first_free = 5;
+  MultiVolumeObjective obj(spline, testExtrinsics(), first_free, volumes, &vwe);
+  const Eigen::VectorXd x0 = obj.freeParams();
+  Eigen::VectorXd g;
+  const double f0 = obj.evaluate(x0, &g);
+  ASSERT_GT(f0, 0);
+  ASSERT_EQ(g.size(), x0.size());
+  const double h = 1e-4;  // [m]
+  Eigen::VectorXd fd(x0.size());
+  for (int k = 0; k < x0.size(); ++k) {
+    Eigen::VectorXd xp = x0, xm = x0;
+    xp[k] += h;
+    xm[k] -= h;
+    fd[k] = (obj.evaluate(xp, nullptr) - obj.evaluate(xm, nullptr)) / (2 * h);
+  }
+  // The float grid and the kinks of the bilinear kernel leave a few per cent of noise in the
+  // differences; the test bounds the error of each component by a fraction of |g|.
+  double max_rel = 0.0;
+  for (int k = 0; k < x0.size(); ++k) {
+    const double rel = std::abs(g[k] - fd[k]) / fd.norm();
+    max_rel = std::max(max_rel, rel);
+    EXPECT_LT(rel, 0.05) << "param " << k << " analytic " << g[k] << " fd " << fd[k];
+  }
+  const double rel_norm = (g - fd).norm() / fd.norm();
+  const double cosine = g.dot(fd) / (g.norm() * fd.norm());
+  EXPECT_LT(rel_norm, 0.05);
+  EXPECT_GT(cosine, 0.998);
+  std::printf(
+      "[backend] FD check: %d free params, |g - fd| / |fd| = %.2e, max per component %.2e of |fd|, "
+      "cosine %.5f\n",
+      int(x0.size()), rel_norm, max_rel, cosine);
+  // The fixed control points are not touched.
+  obj.evaluate(x0, nullptr);
+  for (int i = 0; i < first_free; ++i)
+    EXPECT_EQ(spline->controlPoints()[i],
+              sc.truth->controlPoints()[i] + 0.02 * Vec2(std::sin(3.0 * i), std::cos(5.0 * i)));
+}
+
+TEST(Backend, SpeedPriorGradientMatchesCentralFiniteDifferences) {
+  auto spline = std::make_shared<BSpline>(*truthSpline());
+  const int first_free = 4;
+  std::vector<double> u;
+  for (double x = 0.0; x <= kDuration; x += 0.05) u.push_back(x);
+  const SpeedPrior prior(spline, first_free, u, 3.0);
+  EXPECT_GT(prior.numSamples(), 40u);
+  Eigen::VectorXd g;
+  EXPECT_NEAR(prior.evaluate(&g), 0.0, 1e-20);  // targets are the current speeds
+  // Move the free control points away from the targets, then compare.
+  for (int i = first_free; i < spline->numControlPoints(); ++i)
+    spline->setControlPoint(
+        i, spline->controlPoints()[i] + 0.03 * Vec2(std::cos(2.0 * i), std::sin(7.0 * i)));
+  const double f = prior.evaluate(&g);
+  ASSERT_GT(f, 0.0);
+  ASSERT_EQ(g.size(), 2 * (spline->numControlPoints() - first_free));
+  const double h = 1e-6;
+  for (int k = 0; k < g.size(); ++k) {
+    const int i = first_free + k / 2;
+    const Vec2 P = spline->controlPoints()[i];
+    Vec2 d = Vec2::Zero();
+    d(k % 2) = h;
+    spline->setControlPoint(i, P + d);
+    const double fp = prior.evaluate(nullptr);
+    spline->setControlPoint(i, P - d);
+    const double fm = prior.evaluate(nullptr);
+    spline->setControlPoint(i, P);
+    EXPECT_NEAR(g[k], (fp - fm) / (2 * h), 1e-6 * g.norm()) << "param " << k;
+  }
+}
+
+TEST(Backend, RefinementReducesTheRotationErrorOfBiasedArcs) {
+  Scene sc;
+  const double bias = 3.0 * kPi / 180;
+  const std::vector<ArcEstimate> arcs = truthArcs(*sc.truth, bias);
+  // Front-end dead reckoning with the biased arcs (the initial guess).
+  ArcChain chain(Pose3::Identity(), arcs.front().t_start_ns);
+  for (const ArcEstimate& a : arcs) chain.append(a.omega, a.v, a.t_end_ns);
+  const double fe_err =
+      std::abs(wrapAngle(yawOf(chain.T_odom_base(kEpoch + secToNs(kDuration)).rotation()) -
+                         wrapAngle(sc.truth->heading(kDuration) - sc.truth->heading(0.0))));
+
+  Backend backend(testOptions(), sc.cam, testExtrinsics());
+  // Feed in 0.1 s chunks: events then the arc of that window (as the pipeline does).
+  size_t e = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (const ArcEstimate& a : arcs) {
+    EventVector chunk;
+    while (e < sc.events.size() && sc.events[e].t_ns <= a.t_end_ns) chunk.push_back(sc.events[e++]);
+    backend.addEvents(chunk);
+    backend.addArc(a);
+    backend.process();
+  }
+  backend.finish();
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_TRUE(backend.hasSpline());
+  const BSpline& est = backend.spline();
+  const double be_err = headingChangeError(est, *sc.truth, 0.0, kDuration);
+  // Rotation error over 1 s pairs (a rotation RPE of the heading).
+  double fe_rpe = 0, be_rpe = 0;
+  int pairs = 0;
+  for (double u = 0.0; u + 1.0 <= kDuration + 1e-9; u += 0.1, ++pairs) {
+    const double d_fe = yawOf(chain.T_odom_base(kEpoch + secToNs(u + 1)).rotation()) -
+                        yawOf(chain.T_odom_base(kEpoch + secToNs(u)).rotation());
+    const double d_true = sc.truth->heading(u + 1) - sc.truth->heading(u);
+    fe_rpe += std::pow(wrapAngle(d_fe - d_true), 2);
+    be_rpe += std::pow(headingChangeError(est, *sc.truth, u, u + 1), 2);
+  }
+  fe_rpe = std::sqrt(fe_rpe / pairs) * 180 / kPi;
+  be_rpe = std::sqrt(be_rpe / pairs) * 180 / kPi;
+  const BackendStats& st = backend.stats();
+  std::printf(
+      "[backend] heading error at the end: front-end %.2f deg, back-end %.2f deg (factor %.2f); "
+      "rotation RPE(1 s) %.2f -> %.2f deg; %zu updates, %zu volumes, %zu skipped, %zu evaluations, "
+      "solver %.2f s, wall %.2f s, last gain %.4f, rejected %zu\n",
+      fe_err * 180 / kPi, be_err * 180 / kPi, fe_err / std::max(be_err, 1e-9), fe_rpe, be_rpe,
+      st.updates, st.volumes, st.volumes_skipped, st.evaluations, st.solver_s, wall, st.last_gain,
+      st.rejected);
+  EXPECT_GE(st.updates, 3u);
+  // Bounded memory: only the events of the last window (+ one volume span) are kept.
+  EXPECT_LT(backend.bufferedEvents(), sc.events.size() * 0.8);
+  EXPECT_GT(st.last_gain, 1.0);
+  EXPECT_LT(be_err, 0.7 * fe_err);
+  EXPECT_LT(be_rpe, 0.7 * fe_rpe);
+  const Trajectory3 traj = backend.sampleTrajectory(20.0);
+  ASSERT_GE(traj.size(), size_t(60));
+  for (const StampedPose& p : traj) ASSERT_TRUE(p.T.matrix().allFinite());
+}
+
+TEST(Backend, StandstillGivesFinitePosesAndSkipsVolumes) {
+  Scene sc;
+  std::vector<ArcEstimate> arcs = truthArcs(*sc.truth, 0.0);
+  for (ArcEstimate& a : arcs) {
+    const double s = dtSec(a.t_ref_ns, kEpoch);
+    if (s > 1.0 && s < 2.2) {
+      a.status = ArcStatus::kStandstill;
+      a.omega = a.v = 0.0;
+    }
+  }
+  arcs.front().status = ArcStatus::kStandstill;  // also a standstill at the very start
+  arcs.front().omega = arcs.front().v = 0.0;
+  Backend backend(testOptions(), sc.cam, testExtrinsics());
+  backend.addEvents(sc.events);
+  for (const ArcEstimate& a : arcs) {
+    backend.addArc(a);
+    backend.process();
+  }
+  backend.finish();
+  ASSERT_TRUE(backend.hasSpline());
+  const BSpline& s = backend.spline();
+  ASSERT_EQ(s.standstills().size(), 2u);
+  for (double u = s.validFrom() - 0.1; u <= s.validTo() + 0.1; u += 0.001) {
+    ASSERT_TRUE(s.T_odom_base(u).matrix().allFinite()) << u;
+  }
+  const Pose3 held = s.T_odom_base(1.3);
+  for (double u = 1.1; u < 2.2; u += 0.01) EXPECT_TRUE(s.T_odom_base(u).isApprox(held, 1e-12)) << u;
+  EXPECT_GT(backend.stats().volumes_skipped, 0u);
+  for (const StampedPose& p : backend.sampleTrajectory(50.0)) ASSERT_TRUE(p.T.matrix().allFinite());
+}
+
+TEST(Backend, OptionsValidateNamesTheField) {
+  auto expectField = [](const BackendOptions& o, const std::string& field) {
+    try {
+      o.validate();
+      ADD_FAILURE() << "no exception for " << field;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  EXPECT_NO_THROW(BackendOptions().validate());
+  BackendOptions o;
+  o.tau2_s = o.tau1_s;
+  expectField(o, "tau2_s");
+  o = BackendOptions();
+  o.window_s = 0.1;
+  expectField(o, "window_s");
+  o = BackendOptions();
+  o.degree = 0;
+  expectField(o, "degree");
+  o = BackendOptions();
+  o.knot_spacing_s = -1;
+  expectField(o, "knot_spacing_s");
+  o = BackendOptions();
+  o.max_events_per_volume = 10;
+  expectField(o, "max_events_per_volume");
+  o = BackendOptions();
+  o.volume.num_planes = 0;
+  expectField(o, "num_planes");
+  EXPECT_THROW(Backend(o, CameraModel(testCalibration()), testExtrinsics()), std::invalid_argument);
+}
+
+TEST(Backend, OfflinePipelineWritesTheBackendOutputs) {
+  Scene sc;
+  PipelineConfig cfg = loadPipelineConfig(std::string(VWE_VO_SOURCE_DIR) + "/config/vwe_vo.yaml");
+  EXPECT_EQ(cfg.backend.knot_spacing_s, 0.3);
+  cfg.camera = testCalibration();
+  cfg.T_base_cam = testExtrinsics();
+  cfg.frontend.nominal_speed_mps = kSpeed;
+  cfg.frontend.standstill_event_rate_hz = 1000;  // the scene has ~19k events/s
+  cfg.frontend.volume = testOptions().volume;
+  cfg.backend = testOptions();
+  const std::string dir = "/tmp/vwe_vo_test_backend_" + std::to_string(::getpid());
+  {
+    OfflinePipeline pipeline(cfg);
+    for (size_t i = 0; i < sc.events.size(); i += 5000)
+      pipeline.addEvents(EventVector(sc.events.begin() + i,
+                                     sc.events.begin() + std::min(sc.events.size(), i + 5000)));
+    pipeline.finish();
+    ASSERT_NE(pipeline.backend(), nullptr);
+    ASSERT_TRUE(pipeline.backend()->hasSpline());
+    EXPECT_GE(pipeline.backend()->stats().updates, 2u);
+    pipeline.writeOutputs(dir);
+    const nlohmann::json r = pipeline.report();
+    ASSERT_TRUE(r["stages"].contains("backend"));
+    EXPECT_NEAR(r["processing_s"].get<double>(),
+                r["stages"]["frontend"]["processing_s"].get<double>() +
+                    r["stages"]["backend"]["processing_s"].get<double>(),
+                1e-9);
+  }
+  const Trajectory3 be = readTum(dir + "/backend.tum");
+  EXPECT_GE(be.size(), size_t(50));
+  nlohmann::json spline;
+  std::ifstream(dir + "/spline.json") >> spline;
+  EXPECT_EQ(spline["degree"].get<int>(), 3);
+  EXPECT_EQ(spline["knots_s"].size(), spline["control_points_m"].size() + 4);
+  std::printf("[backend] offline pipeline: %zu backend poses, %zu control points\n", be.size(),
+              spline["control_points_m"].size());
+
+  cfg.frontend_only = true;
+  OfflinePipeline fe_only(cfg);
+  fe_only.addEvents(sc.events);
+  fe_only.finish();
+  EXPECT_EQ(fe_only.backend(), nullptr);
+  EXPECT_FALSE(fe_only.report()["stages"].contains("backend"));
+  EXPECT_EQ(std::system(("rm -rf " + dir).c_str()), 0);
+}
+
+TEST(Backend, YamlLoaderFillsBackendOptionsAndNamesBadKeys) {
+  const std::string calib = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
+  const std::string path = "/tmp/vwe_vo_test_backend_cfg_" + std::to_string(::getpid()) + ".yaml";
+  auto write = [&](const std::string& backend) {
+    std::ofstream(path) << "camera_calibration: " << calib << "\nbackend:\n" << backend;
+  };
+  write("  window_s: 3.0\n  tau1_s: 0.25\n  bogus_key: 1\n  volume:\n    num_planes: 17\n");
+  const PipelineConfig cfg = loadPipelineConfig(path);
+  EXPECT_EQ(cfg.backend.window_s, 3.0);
+  EXPECT_EQ(cfg.backend.tau1_s, 0.25);
+  EXPECT_EQ(cfg.backend.volume.num_planes, 17);
+  EXPECT_EQ(cfg.backend.tau2_s, BackendOptions().tau2_s);
+  bool warned = false;
+  for (const std::string& w : cfg.warnings)
+    warned = warned || w.find("backend.bogus_key") != std::string::npos;
+  EXPECT_TRUE(warned);
+  write("  tau1_s: 0.5\n  tau2_s: 0.4\n");
+  try {
+    loadPipelineConfig(path);
+    ADD_FAILURE() << "tau2_s <= tau1_s accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("tau2_s"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+  std::remove(path.c_str());
+}
