@@ -1,0 +1,524 @@
+#include "vwe_vo/core/emvs.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <stdexcept>
+
+#include <opencv2/imgproc.hpp>
+
+#include "vwe_vo/core/vwe_objective.h"
+
+namespace vwe_vo {
+
+namespace {
+
+bool finitePose(const Pose3& T) { return T.matrix().allFinite(); }
+
+bool validPixel(const CameraModel& camera, const PixelEvent& e) { return camera.inside(e.x, e.y); }
+
+// Voxel hash key of integer cell coordinates (21 bits each, wrapping far outside +-1e6 cells).
+uint64_t cellKey(int64_t ix, int64_t iy, int64_t iz) {
+  const uint64_t m = (1ULL << 21) - 1;
+  return (uint64_t(ix) & m) | ((uint64_t(iy) & m) << 21) | ((uint64_t(iz) & m) << 42);
+}
+
+// keep[i] = 1 if point i has at least min_neighbours others within radius_m.
+std::vector<uint8_t> radiusInlierMask(const std::vector<MapPoint>& points, double radius_m, int min_neighbours) {
+  std::vector<uint8_t> keep(points.size(), 1);
+  if (radius_m <= 0.0 || min_neighbours <= 0 || points.empty()) return keep;
+  const double inv = 1.0 / radius_m;
+  const float r2 = float(radius_m * radius_m);
+  std::unordered_map<uint64_t, std::vector<int>> cells;
+  cells.reserve(points.size());
+  std::vector<Eigen::Matrix<int64_t, 3, 1>> cell_of(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3f& p = points[i].p;
+    cell_of[i] = {int64_t(std::floor(p.x() * inv)), int64_t(std::floor(p.y() * inv)), int64_t(std::floor(p.z() * inv))};
+    cells[cellKey(cell_of[i].x(), cell_of[i].y(), cell_of[i].z())].push_back(int(i));
+  }
+  for (size_t i = 0; i < points.size(); ++i) {
+    int found = 0;
+    for (int dz = -1; dz <= 1 && found < min_neighbours; ++dz)
+      for (int dy = -1; dy <= 1 && found < min_neighbours; ++dy)
+        for (int dx = -1; dx <= 1 && found < min_neighbours; ++dx) {
+          const auto it = cells.find(cellKey(cell_of[i].x() + dx, cell_of[i].y() + dy, cell_of[i].z() + dz));
+          if (it == cells.end()) continue;
+          for (int j : it->second) {
+            if (size_t(j) == i || (points[j].p - points[i].p).squaredNorm() > r2) continue;
+            if (++found >= min_neighbours) break;
+          }
+        }
+    keep[i] = found >= min_neighbours;
+  }
+  return keep;
+}
+
+// Median of the selected depths in a size x size window around each selected pixel.
+cv::Mat maskedMedian(const cv::Mat& depth, const cv::Mat& mask, int size) {
+  cv::Mat out = cv::Mat::zeros(depth.size(), CV_32F);
+  const int h = size / 2;
+  std::vector<float> values;
+  values.reserve(size_t(size) * size);
+  for (int y = 0; y < depth.rows; ++y)
+    for (int x = 0; x < depth.cols; ++x) {
+      if (!mask.at<uint8_t>(y, x)) continue;
+      values.clear();
+      for (int v = std::max(0, y - h); v <= std::min(depth.rows - 1, y + h); ++v) {
+        const uint8_t* m = mask.ptr<uint8_t>(v);
+        const float* d = depth.ptr<float>(v);
+        for (int u = std::max(0, x - h); u <= std::min(depth.cols - 1, x + h); ++u)
+          if (m[u]) values.push_back(d[u]);
+      }
+      auto mid = values.begin() + values.size() / 2;
+      std::nth_element(values.begin(), mid, values.end());
+      out.at<float>(y, x) = *mid;
+    }
+  return out;
+}
+
+}  // namespace
+
+EmvsOptions::EmvsOptions() {
+  volume.grid_scale = 1.0;
+  volume.margin_px = 0;
+  volume.num_planes = 100;
+  volume.z_min_m = 0.5;
+  volume.z_max_m = 8.0;
+  volume.num_threads = 2;
+}
+
+void EmvsOptions::validate() const {
+  auto fail = [](const std::string& m) { throw std::invalid_argument("EmvsOptions: " + m); };
+  volume.validate();
+  if (adaptive_kernel_size < 3 || adaptive_kernel_size % 2 == 0 || adaptive_kernel_size > 101)
+    fail("adaptive_kernel_size must be odd in [3, 101]");
+  if (!(adaptive_sigma_px >= 0.0) || !std::isfinite(adaptive_sigma_px)) fail("adaptive_sigma_px must be >= 0");
+  if (!std::isfinite(adaptive_c)) fail("adaptive_c must be finite");
+  if (!(min_confidence >= 0.0) || !std::isfinite(min_confidence)) fail("min_confidence must be >= 0");
+  if (median_filter_size < 1 || median_filter_size % 2 == 0 || median_filter_size > 31)
+    fail("median_filter_size must be odd in [1, 31]");
+  if (!(local_max_ratio >= 0.0 && local_max_ratio <= 1.0)) fail("local_max_ratio must be in [0, 1]");
+  if (local_max_window_px < 1 || local_max_window_px % 2 == 0 || local_max_window_px > 101)
+    fail("local_max_window_px must be odd in [1, 101]");
+  if (!(max_depth_m > 0.0)) fail("max_depth_m must be positive");
+  if (!(outlier_radius_m >= 0.0) || !std::isfinite(outlier_radius_m)) fail("outlier_radius_m must be >= 0");
+  if (outlier_min_neighbours < 0 || outlier_min_neighbours > 1000) fail("outlier_min_neighbours must be in [0, 1000]");
+  if (!(kf_distance_m > 0.0) || !std::isfinite(kf_distance_m)) fail("kf_distance_m must be positive");
+  if (!(kf_rotation_deg > 0.0) || !std::isfinite(kf_rotation_deg)) fail("kf_rotation_deg must be positive");
+  if (max_events_per_keyframe == 0) fail("max_events_per_keyframe must be positive");
+  if (pose_slice_ns < 0) fail("pose_slice_ns must be >= 0");
+  if (vote_batch == 0) fail("vote_batch must be positive");
+  if (max_pending_events == 0) fail("max_pending_events must be positive");
+}
+
+DepthExtraction extractDepth(const ProjectiveVolume& volume, const EmvsOptions& options) {
+  const int W = volume.width(), H = volume.height(), L = volume.numPlanes();
+  const size_t N = size_t(W) * H;
+  DepthExtraction out;
+  out.confidence = cv::Mat::zeros(H, W, CV_32F);
+  out.depth_m = cv::Mat::zeros(H, W, CV_32F);
+  out.mask = cv::Mat::zeros(H, W, CV_8U);
+  float* conf = out.confidence.ptr<float>();
+  std::vector<uint16_t> arg(N, 0);
+  const float* grid = volume.data().data();
+  // Plane by plane: contiguous reads of the plane-major grid.
+  for (int l = 0; l < L; ++l) {
+    const float* plane = grid + size_t(l) * N;
+    for (size_t i = 0; i < N; ++i) {
+      if (plane[i] > conf[i]) {
+        conf[i] = plane[i];
+        arg[i] = uint16_t(l);
+      }
+    }
+  }
+  double max_conf = 0.0;
+  cv::minMaxLoc(out.confidence, nullptr, &max_conf);
+  if (!(max_conf > 0.0)) return out;
+
+  // Adaptive Gaussian threshold on the confidence scaled to [0, 255] (EMVS, without 8-bit rounding).
+  cv::Mat scaled = out.confidence * (255.0 / max_conf), local_mean;
+  const int k = options.adaptive_kernel_size;
+  cv::GaussianBlur(scaled, local_mean, cv::Size(k, k), options.adaptive_sigma_px, options.adaptive_sigma_px,
+                   cv::BORDER_REPLICATE);
+  cv::Mat depth = cv::Mat::zeros(H, W, CV_32F);
+  float* d = depth.ptr<float>();
+  uint8_t* m = out.mask.ptr<uint8_t>();
+  const float* s = scaled.ptr<float>();
+  const float* mean = local_mean.ptr<float>();
+  const float c = float(options.adaptive_c), min_conf = float(options.min_confidence);
+  // Suppression of the streaks that a bright point leaves in the confidence map (pixels whose
+  // rays cross the point's rays at some depth): keep only pixels near the local maximum.
+  const float local_ratio = float(options.local_max_ratio);
+  const int w = options.local_max_window_px;
+  cv::Mat local_max_map;
+  cv::dilate(out.confidence, local_max_map, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(w, w)));
+  const float* local_max = local_max_map.ptr<float>();
+  for (size_t i = 0; i < N; ++i) {
+    if (!(conf[i] > 0.0f && conf[i] >= min_conf && s[i] > mean[i] + c)) continue;
+    if (conf[i] < local_ratio * local_max[i]) continue;
+    const int l = arg[i];
+    double rho = volume.planeInverseDepth(l);
+    if (options.subpixel && l > 0 && l < L - 1) {
+      const double a = grid[size_t(l - 1) * N + i], b = conf[i], cc = grid[size_t(l + 1) * N + i];
+      // Parabola through the argmax and its neighbours; planes are uniform in inverse depth,
+      // so the plane index is an affine function of rho and the vertex maps to rho directly.
+      double delta = 0.0;
+      const double den = a - 2.0 * b + cc;
+      if (den < 0.0) delta = 0.5 * (a - cc) / den;
+      delta = std::max(-0.5, std::min(0.5, delta));
+      rho += delta * (volume.planeInverseDepth(l + 1) - volume.planeInverseDepth(l));
+    }
+    d[i] = float(1.0 / rho);
+    m[i] = 1;
+    ++out.selected;
+  }
+  out.depth_m = options.median_filter_size > 1 ? maskedMedian(depth, out.mask, options.median_filter_size) : depth;
+  return out;
+}
+
+void extractKeyframe(const ProjectiveVolume& volume, const EmvsOptions& options, const Pose3& T_odom_cam,
+                     EmvsKeyframe* kf) {
+  DepthExtraction ex = extractDepth(volume, options);
+  kf->T_odom_cam = T_odom_cam;
+  kf->confidence = ex.confidence;
+  kf->counts.selected = ex.selected;
+  std::vector<MapPoint> points;
+  std::vector<int> pixel;
+  const double fx = volume.fx(), fy = volume.fy(), cx = volume.cx(), cy = volume.cy();
+  for (int y = 0; y < ex.depth_m.rows; ++y)
+    for (int x = 0; x < ex.depth_m.cols; ++x) {
+      float& z = ex.depth_m.at<float>(y, x);
+      if (!(z > 0.0f)) continue;
+      if (z > options.max_depth_m) {
+        z = 0.0f;
+        continue;
+      }
+      MapPoint p;
+      p.p = Eigen::Vector3f(float((x - cx) / fx) * z, float((y - cy) / fy) * z, z);
+      p.confidence = ex.confidence.at<float>(y, x);
+      points.push_back(p);
+      pixel.push_back(y * ex.depth_m.cols + x);
+    }
+  const std::vector<uint8_t> keep = radiusInlierMask(points, options.outlier_radius_m, options.outlier_min_neighbours);
+  kf->points_cam.clear();
+  kf->points_odom.clear();
+  const Eigen::Isometry3f T = T_odom_cam.cast<float>();
+  float* depth = ex.depth_m.ptr<float>();
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (!keep[i]) {
+      depth[pixel[i]] = 0.0f;  // the depth map shows what the cloud holds
+      ++kf->counts.outliers;
+      continue;
+    }
+    kf->points_cam.push_back(points[i]);
+    MapPoint q = points[i];
+    q.p = T * points[i].p;
+    kf->points_odom.push_back(q);
+  }
+  kf->depth_m = ex.depth_m;
+  kf->counts.points = kf->points_cam.size();
+}
+
+EmvsKeyframe mapKeyframe(const EventVector& events, const TrajectoryModel& T_kf_cam, const Pose3& T_odom_kf,
+                         const CameraModel& camera, const EmvsOptions& options) {
+  options.validate();
+  const CameraCalibration& c = camera.calibration();
+  ProjectiveVolume volume(options.volume, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
+  EmvsKeyframe kf;
+  kf.t_kf_ns = T_kf_cam.referenceTime();
+  kf.t_end_ns = kf.t_kf_ns;
+  kf.counts.events = events.size();
+  // Refuse what voteOnly cannot judge (pixels outside the sensor, non-finite poses), counted.
+  EventVector usable;
+  usable.reserve(events.size());
+  for (const PixelEvent& e : events) {
+    if (!validPixel(camera, e)) {
+      ++kf.counts.skipped_outside;
+    } else if (!T_kf_cam.covers(e.t_ns)) {
+      ++kf.counts.skipped_time;
+    } else if (!finitePose(T_kf_cam.T_Cr_Ct(e.t_ns))) {
+      ++kf.counts.skipped_nan;
+    } else {
+      usable.push_back(e);
+      kf.t_end_ns = std::max(kf.t_end_ns, e.t_ns);
+    }
+  }
+  VweObjective objective(camera, &volume);
+  const VweEvaluation ev = objective.voteOnly(usable, T_kf_cam);
+  kf.counts.skipped_time += ev.skipped_time;
+  kf.counts.skipped_behind = ev.skipped_behind;
+  kf.counts.voted = ev.rays;
+  kf.counts.votes = ev.votes;
+  extractKeyframe(volume, options, T_odom_kf, &kf);
+  return kf;
+}
+
+size_t removeRadiusOutliers(std::vector<MapPoint>* points, double radius_m, int min_neighbours) {
+  const std::vector<uint8_t> keep = radiusInlierMask(*points, radius_m, min_neighbours);
+  size_t n = 0;
+  for (size_t i = 0; i < points->size(); ++i)
+    if (keep[i]) (*points)[n++] = (*points)[i];
+  const size_t removed = points->size() - n;
+  points->resize(n);
+  return removed;
+}
+
+// ---------------------------------------------------------------------------------------------
+// EmvsMapper
+
+EmvsMapper::EmvsMapper(const EmvsOptions& options, const CameraModel& camera) : options_(options), camera_(camera) {
+  options_.validate();
+  const CameraCalibration& c = camera.calibration();
+  volume_ = std::make_unique<ProjectiveVolume>(options_.volume, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
+}
+
+void EmvsMapper::addEvents(const EventVector& events) {
+  for (const PixelEvent& e : events) {
+    const int64_t newest = !pending_.empty() ? pending_.back().t_ns : (active_ ? t_last_ns_ : INT64_MIN);
+    if (e.t_ns < newest) {
+      ++dropped_out_of_order_;
+      continue;
+    }
+    pending_.push_back(e);
+  }
+  while (pending_.size() > options_.max_pending_events) {
+    pending_.pop_front();
+    ++dropped_pending_;
+  }
+}
+
+void EmvsMapper::startKeyframe(int64_t t_ns, const Pose3& T_odom_cam) {
+  active_ = true;
+  t_kf_ns_ = t_last_ns_ = t_ns;
+  T_odom_kf_ = T_odom_cam;
+  T_kf_odom_ = T_odom_cam.inverse();
+  ++kf_generation_;
+}
+
+void EmvsMapper::voteBatch() {
+  if (batch_.empty()) return;
+  counts_.votes += volume_->vote(batch_);
+  kf_rays_.insert(kf_rays_.end(), batch_.begin(), batch_.end());
+  batch_.clear();
+}
+
+void EmvsMapper::closeKeyframe(EmvsKeyframe* kf) {
+  voteBatch();
+  kf->t_kf_ns = t_kf_ns_;
+  kf->t_end_ns = t_last_ns_;
+  kf->counts = counts_;
+  extractKeyframe(*volume_, options_, T_odom_kf_, kf);
+  volume_->clear(kf_rays_);
+  kf_rays_.clear();
+  counts_ = EmvsCounts();
+  active_ = false;
+  ++num_keyframes_;
+}
+
+std::vector<EmvsKeyframe> EmvsMapper::process(const PoseFunction& T_odom_cam, int64_t t_final_ns) {
+  std::vector<EmvsKeyframe> done;
+  const double fx = volume_->fx(), fy = volume_->fy(), cx = volume_->cx(), cy = volume_->cy();
+  std::vector<Pose3> poses;
+  std::vector<uint8_t> status;  // 0 ok, 1 not covered, 2 not finite
+  while (!pending_.empty() && pending_.front().t_ns <= t_final_ns) {
+    // One slice of events sharing a pose (the pose at its middle) when the trajectory covers
+    // both ends; otherwise a pose per event, so coverage is judged per event.
+    const int64_t t_a = pending_.front().t_ns;
+    size_t n = 0;
+    while (n < pending_.size() && pending_[n].t_ns <= t_final_ns && pending_[n].t_ns - t_a <= options_.pose_slice_ns)
+      ++n;
+    const int64_t t_b = pending_[n - 1].t_ns;
+    Pose3 T_a, T_b, T_shared = Pose3::Identity();
+    const bool shared = T_odom_cam(t_a, &T_a) && T_odom_cam(t_b, &T_b) && finitePose(T_a) && finitePose(T_b);
+    if (shared) {
+      T_shared = t_a == t_b ? T_a : interpolatePose(T_a, T_b, 0.5);
+    } else {
+      poses.assign(n, Pose3::Identity());
+      status.assign(n, 0);
+      for (size_t i = 0; i < n; ++i) {
+        if (!T_odom_cam(pending_[i].t_ns, &poses[i]))
+          status[i] = 1;
+        else if (!finitePose(poses[i]))
+          status[i] = 2;
+      }
+    }
+    Pose3 T_kf_cam = Pose3::Identity();
+    uint64_t T_kf_cam_generation = 0;  // keyframe T_kf_cam was computed for (0: none)
+    for (size_t i = 0; i < n; ++i) {
+      const PixelEvent& e = pending_[i];
+      const Pose3& T_odom_cam_i = shared ? T_shared : poses[i];
+      if (!validPixel(camera_, e)) {
+        ++counts_.events;
+        ++counts_.skipped_outside;
+        continue;
+      }
+      if (!shared && status[i] != 0) {
+        ++counts_.events;
+        ++(status[i] == 1 ? counts_.skipped_time : counts_.skipped_nan);
+        continue;
+      }
+      if (!shared || !active_ || T_kf_cam_generation != kf_generation_) {
+        if (active_) {
+          T_kf_cam = T_kf_odom_ * T_odom_cam_i;
+          const bool moved = T_kf_cam.translation().norm() > options_.kf_distance_m;
+          const bool turned = rotationAngle(T_kf_cam.linear()) * kDegPerRad > options_.kf_rotation_deg;
+          if (moved || turned) {
+            done.emplace_back();
+            closeKeyframe(&done.back());
+          }
+        }
+        if (!active_) startKeyframe(e.t_ns, T_odom_cam_i);
+        T_kf_cam = T_kf_odom_ * T_odom_cam_i;
+        T_kf_cam_generation = kf_generation_;
+      }
+      if (counts_.voted >= options_.max_events_per_keyframe) {
+        done.emplace_back();
+        closeKeyframe(&done.back());
+        startKeyframe(e.t_ns, T_odom_cam_i);
+        T_kf_cam = T_kf_odom_ * T_odom_cam_i;
+        T_kf_cam_generation = kf_generation_;
+      }
+      ++counts_.events;
+      VolumeRay ray;
+      if (!makeVolumeRay(T_kf_cam.translation(), T_kf_cam.linear() * camera_.bearing(e.x, e.y).cast<double>(), fx,
+                         fy, cx, cy, &ray)) {
+        ++counts_.skipped_behind;
+        continue;
+      }
+      batch_.push_back(ray);
+      ++counts_.voted;
+      t_last_ns_ = e.t_ns;
+      if (batch_.size() >= options_.vote_batch) voteBatch();
+    }
+    pending_.erase(pending_.begin(), pending_.begin() + long(n));
+  }
+  voteBatch();
+  return done;
+}
+
+bool EmvsMapper::finish(EmvsKeyframe* keyframe) {
+  if (!active_) return false;
+  closeKeyframe(keyframe);
+  return true;
+}
+
+void EmvsMapper::reset() {
+  pending_.clear();
+  voteBatch();
+  volume_->clear(kf_rays_);
+  kf_rays_.clear();
+  counts_ = EmvsCounts();
+  active_ = false;
+}
+
+// ---------------------------------------------------------------------------------------------
+// GlobalMap
+
+void GlobalMapOptions::validate() const {
+  if (!(voxel_size_m > 0.0) || !std::isfinite(voxel_size_m))
+    throw std::invalid_argument("GlobalMapOptions: voxel_size_m must be positive");
+  if (max_points == 0) throw std::invalid_argument("GlobalMapOptions: max_points must be positive");
+}
+
+GlobalMap::GlobalMap(const GlobalMapOptions& options) : options_(options) { options_.validate(); }
+
+void GlobalMap::insert(const std::vector<MapPoint>& points_odom) {
+  ++inserts_;
+  const double inv = 1.0 / options_.voxel_size_m;
+  for (const MapPoint& p : points_odom) {
+    if (!p.p.allFinite()) continue;
+    const Eigen::Vector3d q = p.p.cast<double>();
+    Voxel& v = voxels_[cellKey(int64_t(std::floor(q.x() * inv)), int64_t(std::floor(q.y() * inv)),
+                               int64_t(std::floor(q.z() * inv)))];
+    v.sum += q;
+    v.confidence_sum += p.confidence;
+    ++v.count;
+    v.last_insert = inserts_;
+  }
+  if (voxels_.size() <= options_.max_points) return;
+  struct Rank {
+    uint64_t last_insert;
+    uint32_t count;
+    uint64_t key;
+  };
+  std::vector<Rank> ranks;
+  ranks.reserve(voxels_.size());
+  for (const auto& kv : voxels_) ranks.push_back({kv.second.last_insert, kv.second.count, kv.first});
+  const size_t excess = voxels_.size() - options_.max_points;
+  std::nth_element(ranks.begin(), ranks.begin() + long(excess - 1), ranks.end(), [](const Rank& a, const Rank& b) {
+    return a.last_insert != b.last_insert ? a.last_insert < b.last_insert
+                                          : (a.count != b.count ? a.count < b.count : a.key < b.key);
+  });
+  for (size_t i = 0; i < excess; ++i) voxels_.erase(ranks[i].key);
+  dropped_ += excess;
+}
+
+std::vector<MapPoint> GlobalMap::points() const {
+  std::vector<MapPoint> out;
+  out.reserve(voxels_.size());
+  for (const auto& kv : voxels_) {
+    MapPoint p;
+    p.p = (kv.second.sum / kv.second.count).cast<float>();
+    p.confidence = float(kv.second.confidence_sum / kv.second.count);
+    out.push_back(p);
+  }
+  return out;
+}
+
+void GlobalMap::clear() {
+  voxels_.clear();
+  inserts_ = 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+// PLY
+
+PlyCloud toPlyCloud(const std::vector<MapPoint>& points) {
+  PlyCloud c;
+  c.xyz.reserve(points.size());
+  c.confidence.reserve(points.size());
+  for (const MapPoint& p : points) {
+    c.xyz.push_back(p.p);
+    c.confidence.push_back(p.confidence);
+  }
+  return c;
+}
+
+namespace {
+void appendFloatLe(std::vector<char>* buf, float f) {
+  uint32_t u;
+  std::memcpy(&u, &f, 4);
+  for (int b = 0; b < 4; ++b) buf->push_back(char((u >> (8 * b)) & 0xff));
+}
+}  // namespace
+
+void writePly(const std::string& path, const PlyCloud& cloud) {
+  const size_t n = cloud.xyz.size();
+  if (!cloud.rgb.empty() && cloud.rgb.size() != n)
+    throw std::invalid_argument("writePly: " + std::to_string(cloud.rgb.size()) + " colours for " + std::to_string(n) +
+                                " points");
+  if (!cloud.confidence.empty() && cloud.confidence.size() != n)
+    throw std::invalid_argument("writePly: " + std::to_string(cloud.confidence.size()) + " confidences for " +
+                                std::to_string(n) + " points");
+  std::ofstream f(path, std::ios::binary);
+  if (!f) throw std::runtime_error("writePly: cannot open " + path);
+  f << "ply\nformat binary_little_endian 1.0\ncomment vwe_vo EMVS map\nelement vertex " << n
+    << "\nproperty float x\nproperty float y\nproperty float z\n";
+  if (!cloud.rgb.empty()) f << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  if (!cloud.confidence.empty()) f << "property float confidence\n";
+  f << "end_header\n";
+  std::vector<char> buf;
+  buf.reserve(n * 19);
+  for (size_t i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) appendFloatLe(&buf, cloud.xyz[i][k]);
+    if (!cloud.rgb.empty())
+      for (int k = 0; k < 3; ++k) buf.push_back(char(cloud.rgb[i][k]));
+    if (!cloud.confidence.empty()) appendFloatLe(&buf, cloud.confidence[i]);
+  }
+  f.write(buf.data(), std::streamsize(buf.size()));
+  if (!f) throw std::runtime_error("writePly: write failed for " + path);
+}
+
+}  // namespace vwe_vo
