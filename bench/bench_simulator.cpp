@@ -2,6 +2,7 @@
 #include <benchmark/benchmark.h>
 
 #include <chrono>
+#include <cmath>
 #include <string>
 
 #include "vwe_vo/core/camera.h"
@@ -34,6 +35,9 @@ void simulate(benchmark::State& state, const std::string& name, double seconds, 
     wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     benchmark::DoNotOptimize(out.data());
     state.counters["renders_per_sim_s"] = simulator.stats().renders / seconds;
+    // Rendered tiles in units of full frames (tiles are re-rendered only when they need it).
+    const double tiles = std::ceil(camera.width() / 16.0) * std::ceil(camera.height() / 16.0);
+    state.counters["frames_per_sim_s"] = simulator.stats().tile_renders / tiles / seconds;
   }
   const double sim_s = seconds * state.iterations();
   state.counters["events_per_sim_s"] = events / sim_s;

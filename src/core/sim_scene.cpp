@@ -5,7 +5,6 @@
 #include <limits>
 #include <random>
 #include <stdexcept>
-#include <thread>
 
 #include "vwe_vo/core/sim/vehicle_trajectory.h"
 
@@ -47,8 +46,9 @@ size_t Scene::addBox(const Eigen::Vector3f& mn, const Eigen::Vector3f& mx, int t
     for (int side = 0; side < 2; ++side) {
       if (axis == 2 && side == 0) continue;  // bottom never seen
       const float plane = side ? mx[axis] : mn[axis];
-      addRect(axis, plane, Eigen::Vector2f(mn[ua], mn[va]), Eigen::Vector2f(mx[ua], mx[va]), texture,
-              gain * side_gain[side][axis], seed * 7 + axis * 2 + side);
+      const size_t f = addRect(axis, plane, Eigen::Vector2f(mn[ua], mn[va]), Eigen::Vector2f(mx[ua], mx[va]), texture,
+                               gain * side_gain[side][axis], seed * 7 + axis * 2 + side);
+      faces[f].facing = side ? 1 : -1;
     }
   }
   return first;
@@ -335,6 +335,19 @@ SceneRenderer::SceneRenderer(const Scene& scene, const CameraModel& camera, int 
   // Grow tile bounds by half a pixel so faces touching a tile's border are not missed.
   for (auto& tb : tile_bounds_) tb += Eigen::Vector4f(-pixel_angle_, pixel_angle_, -pixel_angle_, pixel_angle_);
   tile_faces_.resize(tile_bounds_.size());
+  const float inf = std::numeric_limits<float>::max();
+  col_bounds_.assign(tiles_x_, Eigen::Vector2f(inf, -inf));
+  row_bounds_.assign(tiles_y_, Eigen::Vector2f(inf, -inf));
+  for (int ty = 0; ty < tiles_y_; ++ty)
+    for (int tx = 0; tx < tiles_x_; ++tx) {
+      const Eigen::Vector4f& tb = tile_bounds_[ty * tiles_x_ + tx];
+      col_bounds_[tx] = Eigen::Vector2f(std::min(col_bounds_[tx][0], tb[0]), std::max(col_bounds_[tx][1], tb[1]));
+      row_bounds_[ty] = Eigen::Vector2f(std::min(row_bounds_[ty][0], tb[2]), std::max(row_bounds_[ty][1], tb[3]));
+    }
+  sensor_bounds_ = Eigen::Vector4f(inf, -inf, inf, -inf);
+  for (const auto& tb : tile_bounds_)
+    sensor_bounds_ = Eigen::Vector4f(std::min(sensor_bounds_[0], tb[0]), std::max(sensor_bounds_[1], tb[1]),
+                                     std::min(sensor_bounds_[2], tb[2]), std::max(sensor_bounds_[3], tb[3]));
 }
 
 void SceneRenderer::prepare(const Pose3& T_odom_cam) {
@@ -342,9 +355,13 @@ void SceneRenderer::prepare(const Pose3& T_odom_cam) {
   c_odom_ = T_odom_cam.translation().cast<float>();
   const Eigen::Matrix3f R_cam_odom = R_odom_cam_.transpose();
   for (auto& l : tile_faces_) l.clear();
+  visible_.clear();
+  face_bounds_.clear();
   constexpr float kNear = 0.01f;
   for (size_t fi = 0; fi < scene_.faces.size(); ++fi) {
     const Face& f = scene_.faces[fi];
+    const float plane_rel = f.plane - c_odom_[f.axis];
+    if (f.facing * plane_rel >= 0.f && f.facing != 0) continue;  // back face of a closed box
     const int ua = uAxis(f.axis), va = vAxis(f.axis);
     Eigen::Vector3f corners[4];
     for (int k = 0; k < 4; ++k) {
@@ -356,14 +373,15 @@ void SceneRenderer::prepare(const Pose3& T_odom_cam) {
     }
     // Clip the quad against the near plane z >= kNear (Sutherland-Hodgman), then take the
     // bounding box of the projections in normalised coordinates.
-    float bx0 = std::numeric_limits<float>::max(), bx1 = -bx0, by0 = bx0, by1 = -bx0;
+    Eigen::Vector4f bb(std::numeric_limits<float>::max(), -std::numeric_limits<float>::max(),
+                       std::numeric_limits<float>::max(), -std::numeric_limits<float>::max());
     int n_in = 0;
     auto add = [&](const Eigen::Vector3f& q) {
       const float nx = q.x() / q.z(), ny = q.y() / q.z();
-      bx0 = std::min(bx0, nx);
-      bx1 = std::max(bx1, nx);
-      by0 = std::min(by0, ny);
-      by1 = std::max(by1, ny);
+      bb[0] = std::min(bb[0], nx);
+      bb[1] = std::max(bb[1], nx);
+      bb[2] = std::min(bb[2], ny);
+      bb[3] = std::max(bb[3], ny);
       ++n_in;
     };
     for (int k = 0; k < 4; ++k) {
@@ -375,78 +393,114 @@ void SceneRenderer::prepare(const Pose3& T_odom_cam) {
         add(a + s * (b - a));
       }
     }
-    if (n_in == 0) continue;
-    for (int t = 0; t < static_cast<int>(tile_bounds_.size()); ++t) {
-      const Eigen::Vector4f& tb = tile_bounds_[t];
-      if (bx1 < tb[0] || bx0 > tb[1] || by1 < tb[2] || by0 > tb[3]) continue;
-      tile_faces_[t].push_back(static_cast<int>(fi));
+    if (n_in == 0 || bb[1] < sensor_bounds_[0] || bb[0] > sensor_bounds_[1] || bb[3] < sensor_bounds_[2] ||
+        bb[2] > sensor_bounds_[3])
+      continue;
+    FaceCam fc;
+    fc.axis = f.axis;
+    fc.ua = ua;
+    fc.va = va;
+    fc.plane_rel = plane_rel;
+    fc.o_u = c_odom_[ua];
+    fc.o_v = c_odom_[va];
+    for (int k = 0; k < 2; ++k) {
+      fc.lo[k] = f.lo[k];
+      fc.hi[k] = f.hi[k];
+      fc.offset[k] = f.offset[k];
+    }
+    fc.gain = f.gain;
+    const float du = std::max({f.lo[0] - fc.o_u, 0.f, fc.o_u - f.hi[0]});
+    const float dv = std::max({f.lo[1] - fc.o_v, 0.f, fc.o_v - f.hi[1]});
+    fc.min_dist = std::sqrt(plane_rel * plane_rel + du * du + dv * dv);
+    fc.tex = scene_.textures[f.texture].get();
+    visible_.push_back(fc);
+    face_bounds_.push_back(bb);
+  }
+  // Nearest first: a ray stops testing faces once the next one cannot be nearer than its hit.
+  order_.resize(visible_.size());
+  for (size_t i = 0; i < order_.size(); ++i) order_[i] = static_cast<int>(i);
+  std::stable_sort(order_.begin(), order_.end(),
+                   [&](int a, int b) { return visible_[a].min_dist < visible_[b].min_dist; });
+  for (int vi : order_) {
+    const Eigen::Vector4f& bb = face_bounds_[vi];
+    // Test only the tiles of the candidate columns x rows.
+    for (int ty = 0; ty < tiles_y_; ++ty) {
+      if (bb[3] < row_bounds_[ty][0] || bb[2] > row_bounds_[ty][1]) continue;
+      for (int tx = 0; tx < tiles_x_; ++tx) {
+        if (bb[1] < col_bounds_[tx][0] || bb[0] > col_bounds_[tx][1]) continue;
+        const int t = ty * tiles_x_ + tx;
+        const Eigen::Vector4f& tb = tile_bounds_[t];
+        if (bb[1] < tb[0] || bb[0] > tb[1] || bb[3] < tb[2] || bb[2] > tb[3]) continue;
+        tile_faces_[t].push_back(vi);
+      }
     }
   }
 }
 
 void SceneRenderer::renderTileRow(int tile_row, float* intensity, float* depth) const {
+  for (int tx = 0; tx < tiles_x_; ++tx) renderTile(tx, tile_row, intensity, depth);
+}
+
+void SceneRenderer::renderTile(int tx, int tile_row, float* intensity, float* depth) const {
   const int y0 = tile_row * kTile, y1 = std::min(height_, y0 + kTile);
   const int nss = ss_ * ss_;
   const float inv_nss = 1.0f / static_cast<float>(nss);
-  const Eigen::Vector3f o = c_odom_;
   const float foot_scale = pixel_angle_ / static_cast<float>(ss_);
-  for (int tx = 0; tx < tiles_x_; ++tx) {
-    const std::vector<int>& faces = tile_faces_[tile_row * tiles_x_ + tx];
-    const int x0 = tx * kTile, x1 = std::min(width_, x0 + kTile);
-    for (int y = y0; y < y1; ++y)
-      for (int x = x0; x < x1; ++x) {
-        const size_t pix = static_cast<size_t>(y) * width_ + x;
-        float sum = 0.f, z_cam = 0.f;
-        for (int s = 0; s < nss; ++s) {
-          const Eigen::Vector3f& b = rays_[pix * nss + s];
-          const Eigen::Vector3f d = R_odom_cam_ * b;
-          float t_best = std::numeric_limits<float>::max();
-          int best = -1;
-          float bu = 0.f, bv = 0.f;
-          for (int fi : faces) {
-            const Face& f = scene_.faces[fi];
-            const float da = d[f.axis];
-            if (da == 0.f) continue;
-            const float t = (f.plane - o[f.axis]) / da;
-            if (t <= 1e-4f || t >= t_best) continue;
-            const float u = o[uAxis(f.axis)] + t * d[uAxis(f.axis)];
-            if (u < f.lo[0] || u > f.hi[0]) continue;
-            const float v = o[vAxis(f.axis)] + t * d[vAxis(f.axis)];
-            if (v < f.lo[1] || v > f.hi[1]) continue;
-            t_best = t;
-            best = fi;
-            bu = u;
-            bv = v;
-          }
-          if (best < 0) {
-            // Sky: a little brighter upwards.
-            sum += scene_.sky_intensity * (0.85f + 0.15f * std::min(1.f, std::max(0.f, d.z() * 3.f)));
-            continue;
-          }
-          const Face& f = scene_.faces[best];
-          // Pixel footprint on the surface: grows with distance and obliquity (isotropic filter
-          // with a compromise between the two axes of the footprint ellipse).
-          const float cos_inc = std::max(0.05f, std::abs(d[f.axis]));
-          const float footprint = t_best * foot_scale / std::sqrt(cos_inc);
-          sum += f.gain * scene_.textures[f.texture]->sample(bu + f.offset[0], bv + f.offset[1], footprint);
-          if (s == 0) z_cam = t_best * b.z();
+  const std::vector<int>& faces = tile_faces_[tile_row * tiles_x_ + tx];
+  const int* face_idx = faces.data();
+  const int n_faces = static_cast<int>(faces.size());
+  const int x0 = tx * kTile, x1 = std::min(width_, x0 + kTile);
+  for (int y = y0; y < y1; ++y)
+    for (int x = x0; x < x1; ++x) {
+      const size_t pix = static_cast<size_t>(y) * width_ + x;
+      float sum = 0.f, z_cam = 0.f;
+      for (int s = 0; s < nss; ++s) {
+        const Eigen::Vector3f& b = rays_[pix * nss + s];
+        const Eigen::Vector3f d = R_odom_cam_ * b;
+        // Ray parameter t = plane_rel / d[axis]; a zero component gives inf or NaN, which the
+        // range test below rejects.
+        const float inv_d[3] = {1.0f / d.x(), 1.0f / d.y(), 1.0f / d.z()};
+        float t_best = std::numeric_limits<float>::max();
+        const FaceCam* best = nullptr;
+        float bu = 0.f, bv = 0.f;
+        for (int k = 0; k < n_faces; ++k) {
+          const FaceCam& f = visible_[face_idx[k]];
+          if (f.min_dist >= t_best) break;  // this face and all after it are farther
+          const float t = f.plane_rel * inv_d[f.axis];
+          if (!(t > 1e-4f && t < t_best)) continue;
+          const float u = f.o_u + t * d[f.ua];
+          if (u < f.lo[0] || u > f.hi[0]) continue;
+          const float v = f.o_v + t * d[f.va];
+          if (v < f.lo[1] || v > f.hi[1]) continue;
+          t_best = t;
+          best = &f;
+          bu = u;
+          bv = v;
         }
-        if (intensity) intensity[pix] = sum * inv_nss;
-        if (depth) depth[pix] = z_cam;
+        if (!best) {
+          // Sky: a little brighter upwards.
+          sum += scene_.sky_intensity * (0.85f + 0.15f * std::min(1.f, std::max(0.f, d.z() * 3.f)));
+          continue;
+        }
+        // Pixel footprint on the surface: grows with distance and obliquity (isotropic filter
+        // with a compromise between the two axes of the footprint ellipse).
+        const float cos_inc = std::max(0.05f, std::abs(d[best->axis]));
+        const float footprint = t_best * foot_scale / std::sqrt(cos_inc);
+        sum += best->gain * best->tex->sample(bu + best->offset[0], bv + best->offset[1], footprint);
+        if (s == 0) z_cam = t_best * b.z();
       }
-  }
+      if (intensity) intensity[pix] = sum * inv_nss;
+      if (depth) depth[pix] = z_cam;
+    }
 }
 
-void SceneRenderer::render(const Pose3& T_odom_cam, float* intensity, float* depth, int threads) {
+void SceneRenderer::render(const Pose3& T_odom_cam, float* intensity, float* depth, ThreadPool* pool) {
   prepare(T_odom_cam);
-  threads = std::max(1, threads);
-  std::vector<std::thread> pool;
-  for (int k = 1; k < threads; ++k)
-    pool.emplace_back([&, k] {
-      for (int r = k; r < tiles_y_; r += threads) renderTileRow(r, intensity, depth);
-    });
-  for (int r = 0; r < tiles_y_; r += threads) renderTileRow(r, intensity, depth);
-  for (auto& t : pool) t.join();
+  if (!pool) {
+    for (int r = 0; r < tiles_y_; ++r) renderTileRow(r, intensity, depth);
+    return;
+  }
+  pool->run(tiles_y_, [&](int r, int) { renderTileRow(r, intensity, depth); });
 }
 
 }  // namespace sim

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "vwe_vo/core/ackermann_arc.h"
+
 namespace vwe_vo {
 namespace sim {
 
@@ -19,15 +21,6 @@ void VehicleTrajectoryOptions::validate() const {
   if (!(blend_s >= 0 && blend_s <= 10)) throw std::invalid_argument("blend_s must be in [0, 10]");
   if (!start_xyyaw.allFinite()) throw std::invalid_argument("start_xyyaw must be finite");
   vibration.validate();
-}
-
-Vec2 arcDisplacement(double v, double omega, double d_s) {
-  const double psi = omega * d_s;
-  if (std::abs(psi) < 1e-4) {
-    const double p2 = psi * psi;
-    return v * d_s * Vec2(1.0 - p2 / 6.0 + p2 * p2 / 120.0, psi / 2.0 - psi * p2 / 24.0);
-  }
-  return (v / omega) * Vec2(std::sin(psi), 1.0 - std::cos(psi));
 }
 
 namespace {
@@ -85,7 +78,7 @@ VehicleTrajectory VehicleTrajectory::fromProfile(const std::vector<ProfileSegmen
     // Midpoint values: the arc over the step is accurate to O(h^3) per step.
     s.v_step = tr.profileValue(t + 0.5 * h, true);
     s.omega_step = tr.profileValue(t + 0.5 * h, false);
-    const Vec2 d = arcDisplacement(s.v_step, s.omega_step, h);
+    const Vec2 d = arcT_Vr_Vt(s.omega_step, s.v_step, h).translation().head<2>();
     const double c = std::cos(yaw), sn = std::sin(yaw);
     x += c * d.x() - sn * d.y();
     y += sn * d.x() + c * d.y();
@@ -125,7 +118,7 @@ Vec3 VehicleTrajectory::planar(int64_t t_ns) const {
   double d;
   locate(t_ns, &k, &d);
   const Sample& s = table_[k];
-  const Vec2 dp = arcDisplacement(s.v_step, s.omega_step, d);
+  const Vec2 dp = arcT_Vr_Vt(s.omega_step, s.v_step, d).translation().head<2>();
   const double c = std::cos(s.yaw), sn = std::sin(s.yaw);
   return Vec3(s.x + c * dp.x() - sn * dp.y(), s.y + sn * dp.x() + c * dp.y(), wrapAngle(s.yaw + s.omega_step * d));
 }

@@ -22,6 +22,7 @@
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 
+#include "vwe_vo/core/ackermann_arc.h"
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/config.h"
 #include "vwe_vo/core/sim/sequences.h"
@@ -282,7 +283,7 @@ int run(const Args& args) {
         const int64_t tm = next_odom_step + 500000;
         const double v = trajectory.speed(tm) * odom_scale + (trajectory.speed(tm) > 0 ? odom_v_sigma * n01(rng) : 0.0);
         const double w = trajectory.yawRate(tm) + (trajectory.speed(tm) > 0 ? odom_w_sigma * n01(rng) : 0.0);
-        const Vec2 d = sim::arcDisplacement(v, w, 1e-3);
+        const Vec2 d = arcT_Vr_Vt(w, v, 1e-3).translation().head<2>();
         odom_pose.x() += std::cos(odom_pose.z()) * d.x() - std::sin(odom_pose.z()) * d.y();
         odom_pose.y() += std::sin(odom_pose.z()) * d.x() + std::cos(odom_pose.z()) * d.y();
         odom_pose.z() = wrapAngle(odom_pose.z() + w * 1e-3);

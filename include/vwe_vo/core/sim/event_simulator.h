@@ -1,5 +1,6 @@
 // ESIM-style event camera simulator: renders the scene's log intensity on the sensor at adaptive
-// time steps, interpolates it linearly in time per pixel and emits an event at every crossing of
+// time steps (per 16x16 tile: a tile is re-rendered only when its own predicted image motion
+// reaches max_pixel_motion_px), interpolates it linearly in time per pixel and emits an event at every crossing of
 // the pixel's contrast threshold, with per-pixel threshold mismatch, a refractory period,
 // background-activity noise, hot pixels and an optional illumination toggle (HDR / low light).
 #pragma once
@@ -17,6 +18,7 @@
 #include "vwe_vo/core/math.h"
 #include "vwe_vo/core/sim/scene.h"
 #include "vwe_vo/core/sim/vehicle_trajectory.h"
+#include "vwe_vo/core/thread_pool.h"
 
 namespace vwe_vo {
 namespace sim {
@@ -39,20 +41,21 @@ struct EventSimulatorOptions {
   double max_pixel_motion_px = 1.0;    // adaptive render step: max predicted motion per step [px]
   double max_log_step = 0.05;          // adaptive step: max global log-illumination change per step [-]
   double min_render_step_s = 1e-4;     // lower bound of the render step [s]
-  double max_render_step_s = 5e-3;     // upper bound of the render step [s]
+  double max_render_step_s = 0.02;     // upper bound of the time between two renders of a tile [s]
   IlluminationMode illumination = IlluminationMode::kConstant;  // global illumination over time
   double illumination_low = 0.05;      // dark level of the toggle, factor of full light [-]
   double illumination_period_s = 4.0;  // time at each level of the toggle [s]
   double illumination_ramp_s = 0.2;    // duration of each transition [s]
   double dark_noise_rate_hz = 1.0;     // extra background activity per pixel at the dark level [Hz]
-  int num_threads = 2;                 // render threads (image rows split among them) [-]
+  int num_threads = 2;                 // render threads of the simulator's pool (tile rows shared out) [-]
   uint64_t seed = 1;                   // seed of threshold mismatch, noise and hot pixels [-]
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
 };
 
 struct SimulatorStats {
-  uint64_t renders = 0;        // number of rendered frames
+  uint64_t renders = 0;        // number of render steps (each renders the tiles that need it)
+  uint64_t tile_renders = 0;   // number of rendered 16x16 tiles
   uint64_t signal_events = 0;  // events from threshold crossings
   uint64_t noise_events = 0;   // background activity + hot pixels
   uint64_t refractory_drops = 0;  // crossings suppressed by the refractory period
@@ -88,9 +91,15 @@ class EventSimulator {
   const std::vector<float>& thresholdsOn() const { return c_on_; }
 
  private:
-  double nextStepSec(int64_t t_ns) const;
-  void step(int64_t t0_ns, int64_t t1_ns, EventVector* out);
-  void processRows(int thread, int threads, int64_t t0_ns, int64_t t1_ns, float log_illum1);
+  // Predicts the image motion of every tile at t (tile_rate_, log_rate_) and returns the next
+  // global step: the time the fastest tile needs to move max_pixel_motion_px.
+  double planStep(int64_t t_ns);
+  // Renders at t1 the tiles that cannot wait for the next step (all if flush) and appends their
+  // events since each tile's last render, plus the noise of (t0, t1], unsorted.
+  void step(int64_t t0_ns, int64_t t1_ns, bool flush, EventVector* out);
+  // Renders the due tiles of tile row `tile_row` at t1 and emits their threshold crossings into
+  // thread_events_[thread].
+  void processTileRow(int tile_row, int thread, int64_t t1_ns, float log_illum1);
 
   CameraModel camera_;
   Scene scene_;
@@ -99,12 +108,18 @@ class EventSimulator {
   EventSimulatorOptions options_;
   std::unique_ptr<SceneRenderer> renderer_;
   std::unique_ptr<SceneRenderer> depth_renderer_;
+  std::unique_ptr<ThreadPool> pool_;
   int width_, height_;
   int64_t t_now_ns_ = 0;
   std::vector<float> intensity_, depth_;         // last render
   std::vector<float> log_prev_, log_ref_;        // per pixel: last rendered and reference log intensity
   std::vector<float> c_on_, c_off_;              // per-pixel thresholds
   std::vector<int64_t> last_event_ns_;           // per pixel, for the refractory period
+  int tiles_x_ = 0, tiles_y_ = 0;
+  std::vector<float> tile_rate_;                 // per tile: predicted max image motion [px/s]
+  std::vector<int64_t> tile_t_ns_;               // per tile: time of its last render
+  std::vector<uint8_t> tile_due_;                // per tile: rendered in the current step
+  double log_rate_ = 0.0;                        // |d log illumination / dt| [1/s]
   std::vector<int> hot_pixels_;
   std::vector<EventVector> thread_events_;
   std::vector<uint64_t> thread_drops_;

@@ -12,6 +12,7 @@
 
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/math.h"
+#include "vwe_vo/core/thread_pool.h"
 #include "vwe_vo/core/sim/texture.h"
 
 namespace vwe_vo {
@@ -19,7 +20,7 @@ namespace sim {
 
 class VehicleTrajectory;
 
-/// An axis-aligned rectangle in odom, seen from both sides. Surface coordinates (u, v) [m]:
+/// An axis-aligned rectangle in odom, seen from both sides unless `facing` says otherwise. Surface coordinates (u, v) [m]:
 /// normal x -> (y, z), normal y -> (x, z), normal z -> (x, y) (v is the height on walls).
 struct Face {
   int axis = 2;          // index of the normal axis (0 x, 1 y, 2 z)
@@ -29,6 +30,7 @@ struct Face {
   int texture = 0;       // index into Scene::textures
   float offset[2] = {0, 0};  // texture offset added to (u, v) [m]
   float gain = 1.f;      // reflectance x illumination factor of the face [-]
+  int facing = 0;        // +1 / -1: seen only from the + / - side of its normal axis (a closed box's outside); 0: both
 };
 
 struct Scene {
@@ -37,7 +39,8 @@ struct Scene {
   std::vector<Face> faces;
   float sky_intensity = 0.8f;  // linear intensity of rays that hit nothing (at the horizon) [-]
 
-  /// Adds the faces of the box [min, max] (without the bottom face); returns the first index.
+  /// Adds the faces of the box [min, max] (without the bottom face), each seen from outside only;
+  /// returns the first index.
   size_t addBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max, int texture, float gain, uint64_t seed);
   /// Adds one rectangle with normal `axis` at `plane` spanning [lo, hi] in its (u, v).
   size_t addRect(int axis, float plane, Eigen::Vector2f lo, Eigen::Vector2f hi, int texture, float gain, uint64_t seed);
@@ -58,17 +61,27 @@ class SceneRenderer {
 
   void prepare(const Pose3& T_odom_cam);
   int numTileRows() const { return tiles_y_; }
+  int numTileCols() const { return tiles_x_; }
   static constexpr int kTile = 16;
-  /// Renders the pixels of one tile row: linear intensity (scene radiance before the global
+  /// Renders the pixels of one tile: linear intensity (scene radiance before the global
   /// illumination factor) and depth z in the camera frame [m] (0 where nothing was hit).
   /// Output arrays are full images (width * height), row-major; either may be null.
+  void renderTile(int tile_col, int tile_row, float* intensity, float* depth) const;
+  /// All tiles of one tile row.
   void renderTileRow(int tile_row, float* intensity, float* depth) const;
-  /// Convenience: prepare + all tile rows on `threads` threads.
-  void render(const Pose3& T_odom_cam, float* intensity, float* depth, int threads = 1);
+  /// Convenience: prepare + all tile rows, on `pool` if given.
+  void render(const Pose3& T_odom_cam, float* intensity, float* depth, ThreadPool* pool = nullptr);
 
  private:
+  // A face that may be visible from the prepared pose, with what the ray loop needs inline.
   struct FaceCam {
-    Face f;
+    int axis, ua, va;          // normal axis and surface axes
+    float plane_rel;           // plane - camera centre along the normal [m]
+    float o_u, o_v;            // camera centre along the surface axes [m]
+    float lo[2], hi[2];        // bounds in (u, v) [m]
+    float offset[2];           // texture offset [m]
+    float gain;
+    float min_dist;            // distance from the camera centre to the nearest point of the face [m]
     const Texture* tex;
   };
   const Scene& scene_;
@@ -78,10 +91,15 @@ class SceneRenderer {
   float pixel_angle_;  // approximate angle of one pixel [rad]
   std::vector<Eigen::Vector3f> rays_;  // ss^2 unit bearings per pixel (camera frame)
   std::vector<Eigen::Vector4f> tile_bounds_;  // normalised (x/z, y/z) min/max per tile
+  std::vector<Eigen::Vector2f> col_bounds_, row_bounds_;  // union of tile bounds per tile column / row
+  Eigen::Vector4f sensor_bounds_;  // union of all tile bounds
   // Per prepared pose:
   Eigen::Matrix3f R_odom_cam_;
   Eigen::Vector3f c_odom_;
-  std::vector<std::vector<int>> tile_faces_;
+  std::vector<FaceCam> visible_;            // faces that may be visible, nearest (min_dist) first
+  std::vector<Eigen::Vector4f> face_bounds_;  // per visible face: normalised bounding box
+  std::vector<int> order_;                    // visible faces by min_dist
+  std::vector<std::vector<int>> tile_faces_;  // indices into visible_, nearest first
 };
 
 }  // namespace sim

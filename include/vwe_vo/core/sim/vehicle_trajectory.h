@@ -83,9 +83,5 @@ class VehicleTrajectory {
   Trajectory3 tum_;  // when built from a TUM file
 };
 
-/// Planar displacement (dx, dy) in the frame at the start of an arc of speed v, yaw rate omega,
-/// duration d [s] (the DESIGN's Ackermann arc, with the small-angle series near omega = 0).
-Vec2 arcDisplacement(double v, double omega, double d_s);
-
 }  // namespace sim
 }  // namespace vwe_vo
