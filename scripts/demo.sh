@@ -17,23 +17,16 @@ for s in "${seqs[@]}"; do
   seq_dir="$root/out/sequences/$s"
   d="$out/$s"
   mkdir -p "$d"
-  # Per-sequence speed: the street sequence is a car, the others a turtlebot.
-  speed=$(/usr/bin/python3 - "$seq_dir/groundtruth.txt" <<'PY'
-import sys, math
-rows = [list(map(float, l.split())) for l in open(sys.argv[1]) if l.strip() and not l.startswith('#')]
-dist = sum(math.hypot(b[1]-a[1], b[2]-a[2]) for a, b in zip(rows, rows[1:]))
-moving = sum(b[0]-a[0] for a, b in zip(rows, rows[1:]) if math.hypot(b[1]-a[1], b[2]-a[2]) > 1e-4 * (b[0]-a[0]))
-print("%.3f" % (dist / max(moving, 1e-6)))
-PY
-)
-  echo "[demo] 2/4 $s: pipeline (nominal speed $speed m/s = mean moving speed of the sequence)"
-  "$bin/vwe_vo_offline" --ecd "$seq_dir" --nominal-speed "$speed" --out "$d"
+  echo "[demo] 2/4 $s: pipeline (speed from the bag's /odom, as on a robot with wheel odometry)"
+  "$bin/vwe_vo_offline" --bag "$seq_dir/$s.bag" --use-odom --out "$d"
   echo "[demo] 3/4 $s: evaluation"
+  cp "$seq_dir/groundtruth.txt" "$d/groundtruth.tum"
   for m in frontend backend; do
     [ -f "$d/$m.tum" ] || continue
-    cp "$seq_dir/groundtruth.txt" "$d/groundtruth.tum"
+    arcs=()
+    [ "$m" = frontend ] && arcs=(--arcs "$d/arcs.csv")
     "$bin/vwe_vo_eval" --gt "$d/groundtruth.tum" --est "$d/$m.tum" --json "$d/eval_$m.json" \
-        --series "$d/errors_$m.csv" > "$d/eval_$m.txt"
+        --series "$d/errors_$m.csv" "${arcs[@]}" > "$d/eval_$m.txt"
   done
   est_args=()
   for m in frontend backend; do [ -f "$d/$m.tum" ] && est_args+=(--est "$m=$d/$m.tum"); done

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# Generates the simulator's standard sequences (fixed seeds) into out/sequences/NAME/: an Event
-# Camera Dataset folder plus NAME.bag. A sequence is skipped when its stamp file matches the
-# sequence name, seed and generator version. Usage: scripts/make_sequences.sh [NAME...]
+# Generates the simulator's standard sequences (fixed seeds) into out/sequences/NAME/: NAME.bag
+# and groundtruth.txt (FORMAT=bag, the default), or also an Event Camera Dataset folder
+# (FORMAT=ecd,bag; text files are large: ~20 bytes per event). A sequence is skipped when its
+# stamp file matches the sequence name, seed, format and generator version.
+# Usage: [FORMAT=bag|ecd|ecd,bag] scripts/make_sequences.sh [NAME...]
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 set +u  # ROS's setup scripts read unset variables
@@ -9,7 +11,8 @@ set +u  # ROS's setup scripts read unset variables
 source "$ROOT/scripts/ros_env.sh"
 set -u
 BIN="${VWE_WS:-$ROOT/.build/ws}/devel/lib/vwe_vo/vwe_vo_sim"
-VERSION="sim-v1"   # bump when the simulator's output changes
+VERSION="sim-v2"   # bump when the simulator's output changes
+FORMAT="${FORMAT:-bag}"
 OUT="$ROOT/out/sequences"
 if [ ! -x "$BIN" ]; then echo "make_sequences: $BIN not built (run make build)" >&2; exit 1; fi
 if [ $# -eq 0 ]; then
@@ -22,14 +25,14 @@ for name in "${names[@]}"; do
   stamp="$dir/.stamp"
   seed="$("$BIN" --list | awk -v n="$name" '$1 == n {print $4}')"
   if [ -z "$seed" ]; then "$BIN" --sequence "$name" --format ecd --out /dev/null/x 2>&1 | head -1 >&2; exit 2; fi
-  want="name=$name seed=$seed version=$VERSION"
-  if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && [ -f "$dir/$name.bag" ] && [ -f "$dir/events.txt" ]; then
+  want="name=$name seed=$seed format=$FORMAT version=$VERSION"
+  if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && [ -f "$dir/groundtruth.txt" ]; then
     echo "[make_sequences] $name: up to date"
     continue
   fi
   echo "[make_sequences] $name: generating into $dir"
   rm -rf "$dir"
   mkdir -p "$dir"
-  "$BIN" --sequence "$name" --format ecd,bag --seed "$seed" --out "$dir" --depth-times 1.0,5.0 2> >(tee "$dir/sim.log" >&2)
+  "$BIN" --sequence "$name" --format "$FORMAT" --seed "$seed" --out "$dir" --depth-times 1.0,5.0 2> >(tee "$dir/sim.log" >&2)
   echo "$want" > "$stamp"
 done

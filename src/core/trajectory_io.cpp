@@ -186,11 +186,19 @@ EventVector readEcdEvents(const std::string& path, int width, int height) {
   return all;
 }
 
-void writeEcdEvents(const std::string& path, const EventVector& events) {
-  auto f = openForWriting(path);
-  for (const PixelEvent& e : events)
-    std::fprintf(f.get(), "%.9f %u %u %d\n", nsToSec(e.t_ns), e.x, e.y, e.polarity > 0 ? 1 : 0);
+EcdEventWriter::EcdEventWriter(const std::string& path) : path_(path), file_(std::fopen(path.c_str(), "w")) {
+  if (!file_) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
 }
+
+EcdEventWriter::~EcdEventWriter() { std::fclose(file_); }
+
+void EcdEventWriter::write(const EventVector& events) {
+  for (const PixelEvent& e : events)
+    if (std::fprintf(file_, "%.9f %u %u %d\n", nsToSec(e.t_ns), e.x, e.y, e.polarity > 0 ? 1 : 0) < 0)
+      throw std::runtime_error("cannot write " + path_ + ": " + std::strerror(errno));
+}
+
+void writeEcdEvents(const std::string& path, const EventVector& events) { EcdEventWriter(path).write(events); }
 
 EcdCalibration readEcdCalibration(const std::string& path) {
   LineReader in(path);

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -33,7 +34,9 @@ namespace {
 
 using namespace vwe_vo;
 
-constexpr int64_t kEpochNs = kNsPerSec;  // bag time of simulated t = 0
+// Time of simulated t = 0 in every output (bag stamps, events.txt, groundtruth.txt), so that
+// all outputs share one time base (ros::Time cannot be 0 or negative).
+constexpr int64_t kEpochNs = kNsPerSec;
 
 struct Args {
   bool list = false;
@@ -219,7 +222,9 @@ int run(const Args& args) {
   const double gyro_sigma = 0.005, accel_sigma = 0.05;
   const sensor_msgs::CameraInfo info = calibrationToMsg(calib, "davis");
 
-  EventVector all_events;  // kept for the ECD writer
+  std::unique_ptr<EcdEventWriter> ecd_events;  // streamed: memory does not grow with the sequence
+  if (want_ecd) ecd_events = std::make_unique<EcdEventWriter>(args.out + "/events.txt");
+  EventVector shifted;
   EventVector chunk;
   const int64_t chunk_ns = 100000000;  // 0.1 s
   const int64_t packet_ns = secToNs(args.packet_ms * 1e-3);
@@ -232,7 +237,11 @@ int run(const Args& args) {
     chunk.clear();
     simulator.simulateUntil(t1, &chunk);
     n_events += chunk.size();
-    if (want_ecd) all_events.insert(all_events.end(), chunk.begin(), chunk.end());
+    if (want_ecd) {
+      shifted = chunk;
+      for (PixelEvent& e : shifted) e.t_ns += kEpochNs;
+      ecd_events->write(shifted);
+    }
     if (want_bag) {
       // Event packets: fixed windows of packet_ns; stamp = window end (the last event's time bound).
       size_t i = 0;
@@ -340,10 +349,10 @@ int run(const Args& args) {
 
   // Ground truth at 200 Hz, always; ECD files.
   Trajectory3 gt;
-  for (int64_t t = 0; t <= duration_ns; t += 5000000) gt.push_back({t, trajectory.T_odom_base(t)});
+  for (int64_t t = 0; t <= duration_ns; t += 5000000) gt.push_back({t + kEpochNs, trajectory.T_odom_base(t)});
   writeTum(args.out + "/groundtruth.txt", gt);
   if (want_ecd) {
-    writeEcdEvents(args.out + "/events.txt", all_events);
+    ecd_events.reset();
     EcdCalibration ec{calib.fx, calib.fy, calib.cx, calib.cy, calib.distortion[0], calib.distortion[1],
                       calib.distortion[2], calib.distortion[3], calib.distortion[4]};
     writeEcdCalibration(args.out + "/calib.txt", ec);
@@ -362,7 +371,7 @@ int run(const Args& args) {
         for (int x = 0; x < z.cols; ++x) mm(y, x) = static_cast<uint16_t>(std::clamp(std::lround(z(y, x) * 1000.0), 0L, 65535L));
       const std::string name = "depth_" + fmt("%.6f", t) + ".png";
       if (!cv::imwrite(args.out + "/depth/" + name, mm)) throw std::runtime_error("cannot write " + name);
-      list << fmt("%.9f", t) << " " << name << "\n";
+      list << fmt("%.9f", nsToSec(t_ns + kEpochNs)) << " " << name << "\n";
     }
   }
   const double sim_s = nsToSec(duration_ns);

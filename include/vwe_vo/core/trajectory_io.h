@@ -4,6 +4,7 @@
 // nothing is skipped silently (comment lines starting with '#' and blank lines are allowed).
 #pragma once
 
+#include <cstdio>
 #include <memory>
 #include <string>
 #include <vector>
@@ -45,6 +46,19 @@ class EcdEventReader {
   std::unique_ptr<Impl> impl_;
 };
 void writeEcdEvents(const std::string& path, const EventVector& events);
+/// The same, streamed: events are appended chunk by chunk (memory does not grow).
+class EcdEventWriter {
+ public:
+  explicit EcdEventWriter(const std::string& path);
+  ~EcdEventWriter();
+  EcdEventWriter(const EcdEventWriter&) = delete;
+  EcdEventWriter& operator=(const EcdEventWriter&) = delete;
+  void write(const EventVector& events);
+
+ private:
+  std::string path_;
+  FILE* file_;
+};
 
 /// calib.txt: `fx fy cx cy k1 k2 p1 p2 k3` (the last five optional, default 0).
 struct EcdCalibration {
