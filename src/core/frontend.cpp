@@ -172,7 +172,8 @@ size_t Frontend::dropBacklog(size_t keep) {
   EventVector unused;
   int64_t t0, t1;
   while (pendingWindows() > keep && nextWindow(nullptr, &t0, &t1)) {
-    advance(t0, t1, last_omega_, 0.0);  // unknown motion: hold the position
+    extendChain(t0, t1, last_omega_, 0.0);  // unknown motion: hold the position
+    moveToNextWindow(t0, t1);
     ++dropped;
   }
   stats_.windows_dropped += dropped;
@@ -249,45 +250,78 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   return arc;
 }
 
+ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_t t1, bool* scanned) {
+  ArcEstimate arc;
+  const double duration = dtSec(t1, t0);
+  bool odom_standstill = false;
+  const double v = speedAt(t0, t1, &odom_standstill);
+  const double rate = double(events.size()) / std::max(duration, 1e-6);
+  const int64_t t_ref =
+      events.empty() ? t0 + (t1 - t0) / 2 : events.front().t_ns + (events.back().t_ns - events.front().t_ns) / 2;
+  *scanned = false;
+  if (odom_standstill || rate < options_.standstill_event_rate_hz) {
+    arc.status = ArcStatus::kStandstill;
+    arc.confidence = 1.0;
+  } else if (events.size() < options_.min_events) {
+    arc.status = ArcStatus::kLowEvents;
+    arc.omega = last_omega_;
+    arc.v = v;
+  } else {
+    const EventVector sub = subsampleEventsPerTimeSlice(events, t0, t1, options_.max_events_per_volume,
+                                                        options_.subsample_time_slices, options_.seed + stats_.windows);
+    double center = lost_ ? 0.0 : last_omega_;
+    double half = lost_ ? options_.omega_max_rad_s : options_.scan_half_range_rad_s;
+    double gyro = 0.0;
+    if (options_.use_gyro_prior && gyroAt(t0, t1, &gyro)) center = gyro, half = options_.gyro_prior_half_range_rad_s;
+    arc = estimateWindow(sub, t_ref, v, center, half);
+    *scanned = true;
+  }
+  arc.t_ref_ns = t_ref;
+  arc.t_start_ns = t0;
+  arc.t_end_ns = t1;
+  arc.window_events = events.size();
+  if (!*scanned) arc.num_events = 0;
+  return arc;
+}
+
 std::vector<ArcEstimate> Frontend::process() {
   std::vector<ArcEstimate> arcs;
   EventVector window;
   int64_t t0, t1;
   while (nextWindow(&window, &t0, &t1)) {
-    ArcEstimate arc;
-    const double duration = dtSec(t1, t0);
-    bool odom_standstill = false;
-    const double v = speedAt(t0, t1, &odom_standstill);
-    const double rate = double(window.size()) / std::max(duration, 1e-6);
-    const int64_t t_ref = window.empty() ? t0 + (t1 - t0) / 2 : window.front().t_ns + (window.back().t_ns - window.front().t_ns) / 2;
-    if (odom_standstill || rate < options_.standstill_event_rate_hz) {
-      arc.status = ArcStatus::kStandstill;
-      arc.omega = 0.0;
-      arc.v = 0.0;
-      arc.confidence = 1.0;
-    } else if (window.size() < options_.min_events) {
-      arc.status = ArcStatus::kLowEvents;
-      arc.omega = last_omega_;
-      arc.v = v;
-    } else {
-      const EventVector sub = subsampleEventsPerTimeSlice(window, t0, t1, options_.max_events_per_volume,
-                                                          options_.subsample_time_slices, options_.seed + stats_.windows);
-      double center = lost_ ? 0.0 : last_omega_;
-      double half = lost_ ? options_.omega_max_rad_s : options_.scan_half_range_rad_s;
-      double gyro = 0.0;
-      if (options_.use_gyro_prior && gyroAt(t0, t1, &gyro)) center = gyro, half = options_.gyro_prior_half_range_rad_s;
-      arc = estimateWindow(sub, t_ref, v, center, half);
-      lost_ = arc.status == ArcStatus::kLost;
-      if (arc.status == ArcStatus::kOk) last_omega_ = arc.omega;
+    const double previous_omega = last_omega_;
+    const bool was_lost = lost_;
+    bool scanned = false;
+    ArcEstimate arc = estimateSpan(window, t0, t1, &scanned);
+    std::vector<ArcEstimate> parts{arc};
+    // The yaw rate changed within reach of this window: a constant arc would average a ramp
+    // badly, so the window is estimated again as two halves (not with overlapping windows).
+    const bool tiles = options_.window_by_count || options_.window_stride_s <= 0 ||
+                       options_.window_stride_s >= options_.window_duration_s;
+    if (scanned && !was_lost && arc.status == ArcStatus::kOk && tiles && options_.split_omega_change_rad_s > 0 &&
+        std::abs(arc.omega - previous_omega) > options_.split_omega_change_rad_s) {
+      const int64_t tm = t0 + (t1 - t0) / 2;
+      const auto mid = std::lower_bound(window.begin(), window.end(), tm,
+                                        [](const PixelEvent& e, int64_t t) { return e.t_ns < t; });
+      const EventVector first(window.begin(), mid), second(mid, window.end());
+      bool s1 = false, s2 = false;
+      const ArcEstimate a = estimateSpan(first, t0, tm, &s1);
+      if (a.status == ArcStatus::kOk) last_omega_ = a.omega;
+      const ArcEstimate b = estimateSpan(second, tm, t1, &s2);
+      if (a.status == ArcStatus::kOk && b.status == ArcStatus::kOk) {
+        parts = {a, b};
+        ++stats_.windows_split;
+      }
     }
-    arc.t_ref_ns = t_ref;
-    arc.t_start_ns = t0;
-    arc.t_end_ns = t1;
-    arc.window_events = window.size();
-    if (arc.status != ArcStatus::kOk && arc.status != ArcStatus::kLost) arc.num_events = 0;
-    arcs.push_back(arc);
+    for (const ArcEstimate& p : parts) {
+      arcs.push_back(p);
+      extendChain(p.t_start_ns, p.t_end_ns, p.omega, p.v);
+    }
+    const ArcEstimate& last = parts.back();
+    lost_ = last.status == ArcStatus::kLost;
+    last_omega_ = last.status == ArcStatus::kOk ? last.omega : (arc.status == ArcStatus::kOk ? arc.omega : previous_omega);
     ++stats_.windows;
-    advance(t0, t1, arc.omega, arc.v);
+    moveToNextWindow(t0, t1);
   }
   return arcs;
 }
@@ -296,13 +330,18 @@ int64_t Frontend::strideNs() const {
   return options_.window_stride_s > 0 ? secToNs(options_.window_stride_s) : secToNs(options_.window_duration_s);
 }
 
-void Frontend::advance(int64_t t0, int64_t t1, double omega, double v) {
+void Frontend::extendChain(int64_t t0, int64_t t1, double omega, double v) {
   // By count the windows tile the time; by duration a window stands for its middle stride.
-  const int64_t stride = options_.window_by_count ? t1 - t0 : strideNs();
+  const bool overlap = !options_.window_by_count && options_.window_stride_s > 0 &&
+                       options_.window_stride_s < options_.window_duration_s;
+  const int64_t stride = overlap ? strideNs() : t1 - t0;
   const int64_t mid = t0 + (t1 - t0) / 2;
   if (!chain_) chain_ = std::make_unique<ArcChain>(Pose3::Identity(), mid - stride / 2);
   chain_->append(omega, v, std::max(chain_->endTime(), mid + stride / 2));
-  next_window_start_ns_ = options_.window_by_count ? t1 : t0 + stride;
+}
+
+void Frontend::moveToNextWindow(int64_t t0, int64_t t1) {
+  next_window_start_ns_ = options_.window_by_count ? t1 : t0 + strideNs();
   buffer_.dropBefore(next_window_start_ns_);
 }
 

@@ -122,6 +122,7 @@ nlohmann::json OfflinePipeline::report() const {
                              {"windows_lost", by_status[2]},
                              {"windows_low_events", by_status[3]},
                              {"windows_dropped", st.windows_dropped},
+                             {"windows_split", st.windows_split},
                              {"objective_evaluations", st.evaluations}};
   if (backend_) {
     const BackendStats& b = backend_->stats();

@@ -44,6 +44,8 @@ struct FrontendOptions {
   double standstill_speed_mps = 0.02;      // odometry speed below this means standstill [m/s]
   size_t min_events = 1500;                // fewer events in a window: LOW_EVENTS, omega held
   double min_confidence = 0.02;            // below: LOST, next window scans the full range
+  double split_omega_change_rad_s = 0.05;  // a window whose omega differs more from the last is
+                                           // estimated again as two halves (0: never)
   bool use_gyro_prior = false;             // centre and narrow the scan on the gyro yaw rate
   double gyro_prior_half_range_rad_s = 0.1;  // scan half range around the gyro yaw rate [rad/s]
   double max_backwards_jump_s = 0.05;      // events older than newest - this trigger a reset [s]
@@ -71,7 +73,7 @@ Trajectory3 integrateArcs(const std::vector<ArcEstimate>& arcs, int64_t step_ns)
 
 struct FrontendStats {
   size_t events_in = 0, events_outside = 0, events_out_of_order = 0;
-  size_t windows = 0, windows_dropped = 0, resets = 0;
+  size_t windows = 0, windows_dropped = 0, windows_split = 0, resets = 0;
   size_t evaluations = 0;
 };
 
@@ -111,9 +113,12 @@ class Frontend {
  private:
   bool nextWindow(EventVector* window, int64_t* t0, int64_t* t1) const;
   int64_t strideNs() const;
-  /// Moves to the next window after [t0, t1) and extends the dead reckoning over the part of
-  /// time this window stands for (its middle stride).
-  void advance(int64_t t0, int64_t t1, double omega, double v);
+  /// One span of events [t0, t1): standstill / low-events checks, subsampling, estimation.
+  /// *scanned tells whether the objective was optimised.
+  ArcEstimate estimateSpan(const EventVector& events, int64_t t0, int64_t t1, bool* scanned);
+  /// Extends the dead reckoning over the part of time the span [t0, t1) stands for.
+  void extendChain(int64_t t0, int64_t t1, double omega, double v);
+  void moveToNextWindow(int64_t t0, int64_t t1);
   double speedAt(int64_t t0_ns, int64_t t1_ns, bool* standstill) const;
   bool gyroAt(int64_t t0_ns, int64_t t1_ns, double* yaw_rate) const;
 
