@@ -4,9 +4,9 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <stdexcept>
-
+#include <limits>
 #include <opencv2/imgproc.hpp>
+#include <stdexcept>
 
 #include "vwe_vo/core/vwe_objective.h"
 
@@ -14,9 +14,13 @@ namespace vwe_vo {
 
 namespace {
 
-bool finitePose(const Pose3& T) { return T.matrix().allFinite(); }
+bool finitePose(const Pose3& T) {
+  return T.matrix().allFinite();
+}
 
-bool validPixel(const CameraModel& camera, const PixelEvent& e) { return camera.inside(e.x, e.y); }
+bool validPixel(const CameraModel& camera, const PixelEvent& e) {
+  return camera.inside(e.x, e.y);
+}
 
 // Voxel hash key of integer cell coordinates (21 bits each, wrapping far outside +-1e6 cells).
 uint64_t cellKey(int64_t ix, int64_t iy, int64_t iz) {
@@ -25,7 +29,8 @@ uint64_t cellKey(int64_t ix, int64_t iy, int64_t iz) {
 }
 
 // keep[i] = 1 if point i has at least min_neighbours others within radius_m.
-std::vector<uint8_t> radiusInlierMask(const std::vector<MapPoint>& points, double radius_m, int min_neighbours) {
+std::vector<uint8_t> radiusInlierMask(const std::vector<MapPoint>& points, double radius_m,
+                                      int min_neighbours) {
   std::vector<uint8_t> keep(points.size(), 1);
   if (radius_m <= 0.0 || min_neighbours <= 0 || points.empty()) return keep;
   const double inv = 1.0 / radius_m;
@@ -35,7 +40,8 @@ std::vector<uint8_t> radiusInlierMask(const std::vector<MapPoint>& points, doubl
   std::vector<Eigen::Matrix<int64_t, 3, 1>> cell_of(points.size());
   for (size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3f& p = points[i].p;
-    cell_of[i] = {int64_t(std::floor(p.x() * inv)), int64_t(std::floor(p.y() * inv)), int64_t(std::floor(p.z() * inv))};
+    cell_of[i] = {int64_t(std::floor(p.x() * inv)), int64_t(std::floor(p.y() * inv)),
+                  int64_t(std::floor(p.z() * inv))};
     cells[cellKey(cell_of[i].x(), cell_of[i].y(), cell_of[i].z())].push_back(int(i));
   }
   for (size_t i = 0; i < points.size(); ++i) {
@@ -43,7 +49,8 @@ std::vector<uint8_t> radiusInlierMask(const std::vector<MapPoint>& points, doubl
     for (int dz = -1; dz <= 1 && found < min_neighbours; ++dz)
       for (int dy = -1; dy <= 1 && found < min_neighbours; ++dy)
         for (int dx = -1; dx <= 1 && found < min_neighbours; ++dx) {
-          const auto it = cells.find(cellKey(cell_of[i].x() + dx, cell_of[i].y() + dy, cell_of[i].z() + dz));
+          const auto it =
+              cells.find(cellKey(cell_of[i].x() + dx, cell_of[i].y() + dy, cell_of[i].z() + dz));
           if (it == cells.end()) continue;
           for (int j : it->second) {
             if (size_t(j) == i || (points[j].p - points[i].p).squaredNorm() > r2) continue;
@@ -94,22 +101,30 @@ void EmvsOptions::validate() const {
   volume.validate();
   if (adaptive_kernel_size < 3 || adaptive_kernel_size % 2 == 0 || adaptive_kernel_size > 101)
     fail("adaptive_kernel_size must be odd in [3, 101]");
-  if (!(adaptive_sigma_px >= 0.0) || !std::isfinite(adaptive_sigma_px)) fail("adaptive_sigma_px must be >= 0");
+  if (!(adaptive_sigma_px >= 0.0) || !std::isfinite(adaptive_sigma_px))
+    fail("adaptive_sigma_px must be >= 0");
   if (!std::isfinite(adaptive_c)) fail("adaptive_c must be finite");
-  if (!(min_confidence >= 0.0) || !std::isfinite(min_confidence)) fail("min_confidence must be >= 0");
+  if (!(min_confidence >= 0.0) || !std::isfinite(min_confidence))
+    fail("min_confidence must be >= 0");
   if (median_filter_size < 1 || median_filter_size % 2 == 0 || median_filter_size > 31)
     fail("median_filter_size must be odd in [1, 31]");
-  if (!(local_max_ratio >= 0.0 && local_max_ratio <= 1.0)) fail("local_max_ratio must be in [0, 1]");
+  if (!(local_max_ratio >= 0.0 && local_max_ratio <= 1.0))
+    fail("local_max_ratio must be in [0, 1]");
   if (local_max_window_px < 1 || local_max_window_px % 2 == 0 || local_max_window_px > 101)
     fail("local_max_window_px must be odd in [1, 101]");
   if (!(max_depth_m > 0.0)) fail("max_depth_m must be positive");
-  if (!(outlier_radius_m >= 0.0) || !std::isfinite(outlier_radius_m)) fail("outlier_radius_m must be >= 0");
-  if (outlier_min_neighbours < 0 || outlier_min_neighbours > 1000) fail("outlier_min_neighbours must be in [0, 1000]");
-  if (!(kf_distance_m > 0.0) || !std::isfinite(kf_distance_m)) fail("kf_distance_m must be positive");
-  if (!(kf_rotation_deg > 0.0) || !std::isfinite(kf_rotation_deg)) fail("kf_rotation_deg must be positive");
+  if (!(outlier_radius_m >= 0.0) || !std::isfinite(outlier_radius_m))
+    fail("outlier_radius_m must be >= 0");
+  if (outlier_min_neighbours < 0 || outlier_min_neighbours > 1000)
+    fail("outlier_min_neighbours must be in [0, 1000]");
+  if (!(kf_distance_m > 0.0) || !std::isfinite(kf_distance_m))
+    fail("kf_distance_m must be positive");
+  if (!(kf_rotation_deg > 0.0) || !std::isfinite(kf_rotation_deg))
+    fail("kf_rotation_deg must be positive");
   if (max_events_per_keyframe == 0) fail("max_events_per_keyframe must be positive");
   if (pose_slice_ns < 0) fail("pose_slice_ns must be >= 0");
-  if (vote_batch == 0) fail("vote_batch must be positive");
+  if (nms_radius_px < 0 || nms_radius_px > 10) fail("nms_radius_px must be in [0, 10]");
+  if (nms_planes < 0) fail("nms_planes must be >= 0");
   if (max_pending_events == 0) fail("max_pending_events must be positive");
 }
 
@@ -137,49 +152,79 @@ DepthExtraction extractDepth(const ProjectiveVolume& volume, const EmvsOptions& 
   cv::minMaxLoc(out.confidence, nullptr, &max_conf);
   if (!(max_conf > 0.0)) return out;
 
-  // Adaptive Gaussian threshold on the confidence scaled to [0, 255] (EMVS, without 8-bit rounding).
+  // Adaptive Gaussian threshold on the confidence scaled to [0, 255] (EMVS, without 8-bit
+  // rounding).
   cv::Mat scaled = out.confidence * (255.0 / max_conf), local_mean;
   const int k = options.adaptive_kernel_size;
-  cv::GaussianBlur(scaled, local_mean, cv::Size(k, k), options.adaptive_sigma_px, options.adaptive_sigma_px,
-                   cv::BORDER_REPLICATE);
+  cv::GaussianBlur(scaled, local_mean, cv::Size(k, k), options.adaptive_sigma_px,
+                   options.adaptive_sigma_px, cv::BORDER_REPLICATE);
   cv::Mat depth = cv::Mat::zeros(H, W, CV_32F);
   float* d = depth.ptr<float>();
   uint8_t* m = out.mask.ptr<uint8_t>();
   const float* s = scaled.ptr<float>();
   const float* mean = local_mean.ptr<float>();
   const float c = float(options.adaptive_c), min_conf = float(options.min_confidence);
-  // Suppression of the streaks that a bright point leaves in the confidence map (pixels whose
-  // rays cross the point's rays at some depth): keep only pixels near the local maximum.
   const float local_ratio = float(options.local_max_ratio);
-  const int w = options.local_max_window_px;
   cv::Mat local_max_map;
-  cv::dilate(out.confidence, local_max_map, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(w, w)));
-  const float* local_max = local_max_map.ptr<float>();
-  for (size_t i = 0; i < N; ++i) {
-    if (!(conf[i] > 0.0f && conf[i] >= min_conf && s[i] > mean[i] + c)) continue;
-    if (conf[i] < local_ratio * local_max[i]) continue;
-    const int l = arg[i];
-    double rho = volume.planeInverseDepth(l);
-    if (options.subpixel && l > 0 && l < L - 1) {
-      const double a = grid[size_t(l - 1) * N + i], b = conf[i], cc = grid[size_t(l + 1) * N + i];
-      // Parabola through the argmax and its neighbours; planes are uniform in inverse depth,
-      // so the plane index is an affine function of rho and the vertex maps to rho directly.
-      double delta = 0.0;
-      const double den = a - 2.0 * b + cc;
-      if (den < 0.0) delta = 0.5 * (a - cc) / den;
-      delta = std::max(-0.5, std::min(0.5, delta));
-      rho += delta * (volume.planeInverseDepth(l + 1) - volume.planeInverseDepth(l));
-    }
-    d[i] = float(1.0 / rho);
-    m[i] = 1;
-    ++out.selected;
+  if (local_ratio > 0.0f) {
+    const int w = options.local_max_window_px;
+    cv::dilate(out.confidence, local_max_map,
+               cv::getStructuringElement(cv::MORPH_RECT, cv::Size(w, w)));
   }
-  out.depth_m = options.median_filter_size > 1 ? maskedMedian(depth, out.mask, options.median_filter_size) : depth;
+  const float* local_max = local_ratio > 0.0f ? local_max_map.ptr<float>() : nullptr;
+  const int r = options.nms_radius_px;
+  const int dl = options.nms_planes > 0 ? options.nms_planes : L;
+  const double step = volume.planeInverseDepth(1) - volume.planeInverseDepth(0);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const size_t i = size_t(y) * W + x;
+      if (!(conf[i] > 0.0f && conf[i] >= min_conf && s[i] > mean[i] + c)) continue;
+      if (local_max && conf[i] < local_ratio * local_max[i]) continue;
+      const int l = arg[i];
+      // Non-maximum suppression in the DSI, jointly in image position and depth: the pixels
+      // beside a point, whose rays cross the point's rays (the streaks in the confidence map),
+      // peak lower than the point's voxel at a nearby depth and are rejected. Ties keep the
+      // first pixel in scan order.
+      bool is_max = true;
+      for (int v = std::max(0, y - r); v <= std::min(H - 1, y + r) && is_max; ++v)
+        for (int u = std::max(0, x - r); u <= std::min(W - 1, x + r) && is_max; ++u) {
+          if (u == x && v == y) continue;
+          const size_t j = size_t(v) * W + u;
+          if (std::abs(int(arg[j]) - l) <= dl) {
+            if (conf[j] > conf[i] || (conf[j] == conf[i] && j < i)) is_max = false;
+            continue;
+          }
+          for (int q = std::max(0, l - dl); q <= std::min(L - 1, l + dl); ++q) {
+            const float g = grid[size_t(q) * N + j];
+            if (g > conf[i] || (g == conf[i] && j < i)) {
+              is_max = false;
+              break;
+            }
+          }
+        }
+      if (!is_max) continue;
+      double rho = volume.planeInverseDepth(l);
+      if (options.subpixel && l > 0 && l < L - 1) {
+        // The depth profile of a focused pixel is a cusp, not a parabola: the centroid of the
+        // peak above its lower neighbour, in plane units (planes are uniform in inverse depth).
+        const double a = grid[size_t(l - 1) * N + i], b = conf[i], cc = grid[size_t(l + 1) * N + i];
+        const double base = std::min(a, cc);
+        const double den = (a - base) + (b - base) + (cc - base);
+        const double delta = den > 0.0 ? std::max(-0.5, std::min(0.5, (cc - a) / den)) : 0.0;
+        rho += delta * step;
+      }
+      d[i] = float(1.0 / rho);
+      m[i] = 1;
+      ++out.selected;
+    }
+  out.depth_m = options.median_filter_size > 1
+                    ? maskedMedian(depth, out.mask, options.median_filter_size)
+                    : depth;
   return out;
 }
 
-void extractKeyframe(const ProjectiveVolume& volume, const EmvsOptions& options, const Pose3& T_odom_cam,
-                     EmvsKeyframe* kf) {
+void extractKeyframe(const ProjectiveVolume& volume, const EmvsOptions& options,
+                     const Pose3& T_odom_cam, EmvsKeyframe* kf) {
   DepthExtraction ex = extractDepth(volume, options);
   kf->T_odom_cam = T_odom_cam;
   kf->confidence = ex.confidence;
@@ -201,7 +246,8 @@ void extractKeyframe(const ProjectiveVolume& volume, const EmvsOptions& options,
       points.push_back(p);
       pixel.push_back(y * ex.depth_m.cols + x);
     }
-  const std::vector<uint8_t> keep = radiusInlierMask(points, options.outlier_radius_m, options.outlier_min_neighbours);
+  const std::vector<uint8_t> keep =
+      radiusInlierMask(points, options.outlier_radius_m, options.outlier_min_neighbours);
   kf->points_cam.clear();
   kf->points_odom.clear();
   const Eigen::Isometry3f T = T_odom_cam.cast<float>();
@@ -221,14 +267,15 @@ void extractKeyframe(const ProjectiveVolume& volume, const EmvsOptions& options,
   kf->counts.points = kf->points_cam.size();
 }
 
-EmvsKeyframe mapKeyframe(const EventVector& events, const TrajectoryModel& T_kf_cam, const Pose3& T_odom_kf,
-                         const CameraModel& camera, const EmvsOptions& options) {
+EmvsKeyframe mapKeyframe(const EventVector& events, const TrajectoryModel& T_kf_cam,
+                         const Pose3& T_odom_kf, const CameraModel& camera,
+                         const EmvsOptions& options) {
   options.validate();
   const CameraCalibration& c = camera.calibration();
   ProjectiveVolume volume(options.volume, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
   EmvsKeyframe kf;
   kf.t_kf_ns = T_kf_cam.referenceTime();
-  kf.t_end_ns = kf.t_kf_ns;
+  kf.t_begin_ns = kf.t_end_ns = kf.t_kf_ns;
   kf.counts.events = events.size();
   // Refuse what voteOnly cannot judge (pixels outside the sensor, non-finite poses), counted.
   EventVector usable;
@@ -268,15 +315,18 @@ size_t removeRadiusOutliers(std::vector<MapPoint>* points, double radius_m, int 
 // ---------------------------------------------------------------------------------------------
 // EmvsMapper
 
-EmvsMapper::EmvsMapper(const EmvsOptions& options, const CameraModel& camera) : options_(options), camera_(camera) {
+EmvsMapper::EmvsMapper(const EmvsOptions& options, const CameraModel& camera)
+    : options_(options), camera_(camera), pool_(options.volume.num_threads) {
   options_.validate();
   const CameraCalibration& c = camera.calibration();
-  volume_ = std::make_unique<ProjectiveVolume>(options_.volume, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
+  volume_ = std::make_unique<ProjectiveVolume>(options_.volume, c.width, c.height, c.fx, c.fy, c.cx,
+                                               c.cy);
 }
 
 void EmvsMapper::addEvents(const EventVector& events) {
   for (const PixelEvent& e : events) {
-    const int64_t newest = !pending_.empty() ? pending_.back().t_ns : (active_ ? t_last_ns_ : INT64_MIN);
+    const int64_t newest =
+        !pending_.empty() ? pending_.back().t_ns : (active_ ? t_last_ns_ : INT64_MIN);
     if (e.t_ns < newest) {
       ++dropped_out_of_order_;
       continue;
@@ -292,26 +342,79 @@ void EmvsMapper::addEvents(const EventVector& events) {
 void EmvsMapper::startKeyframe(int64_t t_ns, const Pose3& T_odom_cam) {
   active_ = true;
   t_kf_ns_ = t_last_ns_ = t_ns;
-  T_odom_kf_ = T_odom_cam;
   T_kf_odom_ = T_odom_cam.inverse();
-  ++kf_generation_;
+  kf_events_.clear();
+  kf_slices_.clear();
 }
 
-void EmvsMapper::voteBatch() {
-  if (batch_.empty()) return;
-  counts_.votes += volume_->vote(batch_);
-  kf_rays_.insert(kf_rays_.end(), batch_.begin(), batch_.end());
-  batch_.clear();
+void EmvsMapper::addToKeyframe(const PixelEvent& e, int64_t t_pose_ns, const Pose3& T_odom_cam) {
+  if (kf_slices_.empty() || kf_slices_.back().t_ns != t_pose_ns)
+    kf_slices_.push_back({t_pose_ns, T_odom_cam});
+  kf_events_.push_back({e.x, e.y, uint32_t(kf_slices_.size() - 1)});
+  ++counts_.events;
+  t_last_ns_ = e.t_ns;
 }
 
 void EmvsMapper::closeKeyframe(EmvsKeyframe* kf) {
-  voteBatch();
-  kf->t_kf_ns = t_kf_ns_;
+  volume_->clear(rays_);
+  kf->t_begin_ns = t_kf_ns_;
   kf->t_end_ns = t_last_ns_;
+  // Reference view at the median event.
+  const PoseSlice& ref = kf_slices_.empty() ? PoseSlice{t_kf_ns_, T_kf_odom_.inverse()}
+                                            : kf_slices_[kf_events_[kf_events_.size() / 2].slice];
+  const Pose3 T_odom_ref = ref.T_odom_cam, T_ref_odom = ref.T_odom_cam.inverse();
+  struct SliceRays {
+    Eigen::Matrix3f R;
+    Eigen::Vector3f o;
+    float rho_max;
+  };
+  std::vector<SliceRays> slices(kf_slices_.size());
+  for (size_t k = 0; k < kf_slices_.size(); ++k) {
+    const Pose3 T_ref_cam = T_ref_odom * kf_slices_[k].T_odom_cam;
+    slices[k].R = T_ref_cam.linear().cast<float>();
+    slices[k].o = T_ref_cam.translation().cast<float>();
+    const double oz = T_ref_cam.translation().z();
+    slices[k].rho_max = oz > 0 ? float(1.0 / oz) : std::numeric_limits<float>::infinity();
+  }
+  // Rays (see makeVolumeRay), in float, split over the threads; a ray pointing away from the
+  // reference view is marked with a NaN and dropped below.
+  const size_t n = kf_events_.size();
+  rays_.resize(n);
+  const float fx = float(volume_->fx()), fy = float(volume_->fy()), cx = float(volume_->cx()),
+              cy = float(volume_->cy());
+  const int chunks = 4 * pool_.numThreads();
+  pool_.run(chunks, [&](int chunk, int) {
+    const size_t begin = n * size_t(chunk) / size_t(chunks),
+                 end = n * size_t(chunk + 1) / size_t(chunks);
+    for (size_t i = begin; i < end; ++i) {
+      const KeyframeEvent& e = kf_events_[i];
+      const SliceRays& sl = slices[e.slice];
+      const Eigen::Vector3f d = sl.R * camera_.bearing(e.x, e.y);
+      VolumeRay& ray = rays_[i];
+      if (!(d.z() > 1e-6f)) {
+        ray.u0 = std::numeric_limits<float>::quiet_NaN();
+        continue;
+      }
+      const float ax = d.x() / d.z(), ay = d.y() / d.z();
+      ray.u0 = fx * ax + cx;
+      ray.v0 = fy * ay + cy;
+      ray.du = fx * (sl.o.x() - sl.o.z() * ax);
+      ray.dv = fy * (sl.o.y() - sl.o.z() * ay);
+      ray.rho_max = sl.rho_max;
+    }
+  });
+  size_t kept = 0;
+  for (size_t i = 0; i < n; ++i)
+    if (!std::isnan(rays_[i].u0)) rays_[kept++] = rays_[i];
+  rays_.resize(kept);
+  counts_.skipped_behind += n - kept;
+  counts_.voted += kept;
+  counts_.votes += volume_->vote(rays_);
+  kf->t_kf_ns = ref.t_ns;
   kf->counts = counts_;
-  extractKeyframe(*volume_, options_, T_odom_kf_, kf);
-  volume_->clear(kf_rays_);
-  kf_rays_.clear();
+  extractKeyframe(*volume_, options_, T_odom_ref, kf);
+  kf_events_.clear();
+  kf_slices_.clear();
   counts_ = EmvsCounts();
   active_ = false;
   ++num_keyframes_;
@@ -319,7 +422,6 @@ void EmvsMapper::closeKeyframe(EmvsKeyframe* kf) {
 
 std::vector<EmvsKeyframe> EmvsMapper::process(const PoseFunction& T_odom_cam, int64_t t_final_ns) {
   std::vector<EmvsKeyframe> done;
-  const double fx = volume_->fx(), fy = volume_->fy(), cx = volume_->cx(), cy = volume_->cy();
   std::vector<Pose3> poses;
   std::vector<uint8_t> status;  // 0 ok, 1 not covered, 2 not finite
   while (!pending_.empty() && pending_.front().t_ns <= t_final_ns) {
@@ -327,11 +429,13 @@ std::vector<EmvsKeyframe> EmvsMapper::process(const PoseFunction& T_odom_cam, in
     // both ends; otherwise a pose per event, so coverage is judged per event.
     const int64_t t_a = pending_.front().t_ns;
     size_t n = 0;
-    while (n < pending_.size() && pending_[n].t_ns <= t_final_ns && pending_[n].t_ns - t_a <= options_.pose_slice_ns)
+    while (n < pending_.size() && pending_[n].t_ns <= t_final_ns &&
+           pending_[n].t_ns - t_a <= options_.pose_slice_ns)
       ++n;
     const int64_t t_b = pending_[n - 1].t_ns;
     Pose3 T_a, T_b, T_shared = Pose3::Identity();
-    const bool shared = T_odom_cam(t_a, &T_a) && T_odom_cam(t_b, &T_b) && finitePose(T_a) && finitePose(T_b);
+    const bool shared =
+        T_odom_cam(t_a, &T_a) && T_odom_cam(t_b, &T_b) && finitePose(T_a) && finitePose(T_b);
     if (shared) {
       T_shared = t_a == t_b ? T_a : interpolatePose(T_a, T_b, 0.5);
     } else {
@@ -344,11 +448,10 @@ std::vector<EmvsKeyframe> EmvsMapper::process(const PoseFunction& T_odom_cam, in
           status[i] = 2;
       }
     }
-    Pose3 T_kf_cam = Pose3::Identity();
-    uint64_t T_kf_cam_generation = 0;  // keyframe T_kf_cam was computed for (0: none)
+    const int64_t t_shared = t_a + (t_b - t_a) / 2;
+    bool checked = false;  // keyframe criteria judged for this shared slice
     for (size_t i = 0; i < n; ++i) {
       const PixelEvent& e = pending_[i];
-      const Pose3& T_odom_cam_i = shared ? T_shared : poses[i];
       if (!validPixel(camera_, e)) {
         ++counts_.events;
         ++counts_.skipped_outside;
@@ -359,42 +462,30 @@ std::vector<EmvsKeyframe> EmvsMapper::process(const PoseFunction& T_odom_cam, in
         ++(status[i] == 1 ? counts_.skipped_time : counts_.skipped_nan);
         continue;
       }
-      if (!shared || !active_ || T_kf_cam_generation != kf_generation_) {
+      const Pose3& T_odom_cam_i = shared ? T_shared : poses[i];
+      if (!shared || !checked) {
         if (active_) {
-          T_kf_cam = T_kf_odom_ * T_odom_cam_i;
+          const Pose3 T_kf_cam = T_kf_odom_ * T_odom_cam_i;
           const bool moved = T_kf_cam.translation().norm() > options_.kf_distance_m;
-          const bool turned = rotationAngle(T_kf_cam.linear()) * kDegPerRad > options_.kf_rotation_deg;
+          const bool turned =
+              rotationAngle(T_kf_cam.linear()) * kDegPerRad > options_.kf_rotation_deg;
           if (moved || turned) {
             done.emplace_back();
             closeKeyframe(&done.back());
           }
         }
         if (!active_) startKeyframe(e.t_ns, T_odom_cam_i);
-        T_kf_cam = T_kf_odom_ * T_odom_cam_i;
-        T_kf_cam_generation = kf_generation_;
+        checked = true;
       }
-      if (counts_.voted >= options_.max_events_per_keyframe) {
+      if (kf_events_.size() >= options_.max_events_per_keyframe) {
         done.emplace_back();
         closeKeyframe(&done.back());
         startKeyframe(e.t_ns, T_odom_cam_i);
-        T_kf_cam = T_kf_odom_ * T_odom_cam_i;
-        T_kf_cam_generation = kf_generation_;
       }
-      ++counts_.events;
-      VolumeRay ray;
-      if (!makeVolumeRay(T_kf_cam.translation(), T_kf_cam.linear() * camera_.bearing(e.x, e.y).cast<double>(), fx,
-                         fy, cx, cy, &ray)) {
-        ++counts_.skipped_behind;
-        continue;
-      }
-      batch_.push_back(ray);
-      ++counts_.voted;
-      t_last_ns_ = e.t_ns;
-      if (batch_.size() >= options_.vote_batch) voteBatch();
+      addToKeyframe(e, shared ? t_shared : e.t_ns, T_odom_cam_i);
     }
     pending_.erase(pending_.begin(), pending_.begin() + long(n));
   }
-  voteBatch();
   return done;
 }
 
@@ -406,9 +497,8 @@ bool EmvsMapper::finish(EmvsKeyframe* keyframe) {
 
 void EmvsMapper::reset() {
   pending_.clear();
-  voteBatch();
-  volume_->clear(kf_rays_);
-  kf_rays_.clear();
+  kf_events_.clear();
+  kf_slices_.clear();
   counts_ = EmvsCounts();
   active_ = false;
 }
@@ -422,7 +512,9 @@ void GlobalMapOptions::validate() const {
   if (max_points == 0) throw std::invalid_argument("GlobalMapOptions: max_points must be positive");
 }
 
-GlobalMap::GlobalMap(const GlobalMapOptions& options) : options_(options) { options_.validate(); }
+GlobalMap::GlobalMap(const GlobalMapOptions& options) : options_(options) {
+  options_.validate();
+}
 
 void GlobalMap::insert(const std::vector<MapPoint>& points_odom) {
   ++inserts_;
@@ -445,12 +537,15 @@ void GlobalMap::insert(const std::vector<MapPoint>& points_odom) {
   };
   std::vector<Rank> ranks;
   ranks.reserve(voxels_.size());
-  for (const auto& kv : voxels_) ranks.push_back({kv.second.last_insert, kv.second.count, kv.first});
+  for (const auto& kv : voxels_)
+    ranks.push_back({kv.second.last_insert, kv.second.count, kv.first});
   const size_t excess = voxels_.size() - options_.max_points;
-  std::nth_element(ranks.begin(), ranks.begin() + long(excess - 1), ranks.end(), [](const Rank& a, const Rank& b) {
-    return a.last_insert != b.last_insert ? a.last_insert < b.last_insert
-                                          : (a.count != b.count ? a.count < b.count : a.key < b.key);
-  });
+  std::nth_element(ranks.begin(), ranks.begin() + long(excess - 1), ranks.end(),
+                   [](const Rank& a, const Rank& b) {
+                     return a.last_insert != b.last_insert
+                                ? a.last_insert < b.last_insert
+                                : (a.count != b.count ? a.count < b.count : a.key < b.key);
+                   });
   for (size_t i = 0; i < excess; ++i) voxels_.erase(ranks[i].key);
   dropped_ += excess;
 }
@@ -470,6 +565,21 @@ std::vector<MapPoint> GlobalMap::points() const {
 void GlobalMap::clear() {
   voxels_.clear();
   inserts_ = 0;
+}
+
+cv::Mat colorizeDepth(const cv::Mat& depth_m, double z_min_m, double z_max_m) {
+  cv::Mat scaled(depth_m.size(), CV_8U, cv::Scalar(0)), out;
+  const double rho_near = 1.0 / z_min_m, rho_far = 1.0 / z_max_m;
+  for (int y = 0; y < depth_m.rows; ++y)
+    for (int x = 0; x < depth_m.cols; ++x) {
+      const float z = depth_m.at<float>(y, x);
+      if (!(z > 0.0f)) continue;
+      const double a = (1.0 / z - rho_far) / (rho_near - rho_far);
+      scaled.at<uint8_t>(y, x) = uint8_t(std::lround(255.0 * std::max(0.0, std::min(1.0, a))));
+    }
+  cv::applyColorMap(scaled, out, cv::COLORMAP_JET);
+  out.setTo(cv::Scalar(0, 0, 0), depth_m <= 0.0f);
+  return out;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -497,11 +607,11 @@ void appendFloatLe(std::vector<char>* buf, float f) {
 void writePly(const std::string& path, const PlyCloud& cloud) {
   const size_t n = cloud.xyz.size();
   if (!cloud.rgb.empty() && cloud.rgb.size() != n)
-    throw std::invalid_argument("writePly: " + std::to_string(cloud.rgb.size()) + " colours for " + std::to_string(n) +
-                                " points");
-  if (!cloud.confidence.empty() && cloud.confidence.size() != n)
-    throw std::invalid_argument("writePly: " + std::to_string(cloud.confidence.size()) + " confidences for " +
+    throw std::invalid_argument("writePly: " + std::to_string(cloud.rgb.size()) + " colours for " +
                                 std::to_string(n) + " points");
+  if (!cloud.confidence.empty() && cloud.confidence.size() != n)
+    throw std::invalid_argument("writePly: " + std::to_string(cloud.confidence.size()) +
+                                " confidences for " + std::to_string(n) + " points");
   std::ofstream f(path, std::ios::binary);
   if (!f) throw std::runtime_error("writePly: cannot open " + path);
   f << "ply\nformat binary_little_endian 1.0\ncomment vwe_vo EMVS map\nelement vertex " << n

@@ -1,23 +1,29 @@
 #include "vwe_vo/core/offline_pipeline.h"
 
+#include <sys/stat.h>
+
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <limits>
+#include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
-#include <sys/stat.h>
 
 namespace vwe_vo {
 namespace {
 using Clock = std::chrono::steady_clock;
-double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+double secondsSince(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
 
 void makeDirs(const std::string& dir) {
   std::string partial;
   for (size_t i = 0; i <= dir.size(); ++i) {
     if (i == dir.size() || dir[i] == '/') {
       if (!partial.empty() && mkdir(partial.c_str(), 0755) != 0 && errno != EEXIST)
-        throw std::runtime_error("cannot create directory " + partial + ": " + std::strerror(errno));
+        throw std::runtime_error("cannot create directory " + partial + ": " +
+                                 std::strerror(errno));
     }
     if (i < dir.size()) partial += dir[i];
   }
@@ -25,8 +31,11 @@ void makeDirs(const std::string& dir) {
 }  // namespace
 
 OfflinePipeline::OfflinePipeline(const PipelineConfig& config)
-    : config_(config), camera_(config.camera), frontend_(config.frontend, camera_, config.T_base_cam) {
-  if (!config.frontend_only) backend_ = std::make_unique<Backend>(config.backend, camera_, config.T_base_cam);
+    : config_(config),
+      camera_(config.camera),
+      frontend_(config.frontend, camera_, config.T_base_cam) {
+  if (!config.frontend_only)
+    backend_ = std::make_unique<Backend>(config.backend, camera_, config.T_base_cam);
 }
 
 void OfflinePipeline::runBackend(const EventVector& events, size_t first_new_arc, bool at_end) {
@@ -54,8 +63,12 @@ void OfflinePipeline::addEvents(const EventVector& events) {
   runBackend(events, first_new_arc, false);
 }
 
-void OfflinePipeline::addOdometry(int64_t t_ns, double v, double w) { frontend_.addOdometry(t_ns, v, w); }
-void OfflinePipeline::addGyro(int64_t t_ns, double w) { frontend_.addGyro(t_ns, w); }
+void OfflinePipeline::addOdometry(int64_t t_ns, double v, double w) {
+  frontend_.addOdometry(t_ns, v, w);
+}
+void OfflinePipeline::addGyro(int64_t t_ns, double w) {
+  frontend_.addGyro(t_ns, w);
+}
 
 void OfflinePipeline::finish() {
   const auto t0 = Clock::now();
@@ -63,6 +76,62 @@ void OfflinePipeline::finish() {
   for (const ArcEstimate& a : frontend_.process()) arcs_.push_back(a);
   frontend_s_ += secondsSince(t0);
   runBackend({}, first_new_arc, true);
+}
+
+void OfflinePipeline::startMapping(const std::string& depth_png_dir) {
+  // The back-end's spline sampled densely (linear/slerp in between is far below a pixel).
+  map_trajectory_ =
+      backend_ && backend_->hasSpline() ? backend_->sampleTrajectory(200.0) : frontendTrajectory();
+  mapper_ = std::make_unique<EmvsMapper>(config_.mapping, camera_);
+  map_ = std::make_unique<GlobalMap>(config_.global_map);
+  depth_png_dir_ = depth_png_dir;
+  if (!depth_png_dir_.empty()) makeDirs(depth_png_dir_);
+}
+
+void OfflinePipeline::onKeyframes(const std::vector<EmvsKeyframe>& keyframes) {
+  for (const EmvsKeyframe& kf : keyframes) {
+    map_->insert(kf.points_odom);
+    const EmvsCounts& c = kf.counts;
+    map_counts_.events += c.events, map_counts_.voted += c.voted,
+        map_counts_.skipped_time += c.skipped_time;
+    map_counts_.skipped_nan += c.skipped_nan, map_counts_.skipped_behind += c.skipped_behind;
+    map_counts_.skipped_outside += c.skipped_outside, map_counts_.votes += c.votes,
+        map_counts_.selected += c.selected;
+    map_counts_.outliers += c.outliers, map_counts_.points += c.points;
+    if (!depth_png_dir_.empty()) {
+      char name[64];
+      std::snprintf(name, sizeof(name), "/depth_%04zu.png", map_keyframes_);
+      const std::string path = depth_png_dir_ + name;
+      if (!cv::imwrite(path, colorizeDepth(kf.depth_m, config_.mapping.volume.z_min_m,
+                                           config_.mapping.volume.z_max_m)))
+        throw std::runtime_error("cannot write " + path);
+    }
+    ++map_keyframes_;
+  }
+}
+
+void OfflinePipeline::addMappingEvents(const EventVector& events) {
+  if (!mapper_) throw std::logic_error("OfflinePipeline: addMappingEvents before startMapping");
+  const auto t0 = Clock::now();
+  const Pose3 T_base_cam = config_.T_base_cam;
+  const auto pose = [this, &T_base_cam](int64_t t_ns, Pose3* T_odom_cam) {
+    Pose3 T_odom_base;
+    if (!interpolateTrajectory(map_trajectory_, t_ns, &T_odom_base)) return false;
+    *T_odom_cam = T_odom_base * T_base_cam;
+    return true;
+  };
+  mapper_->addEvents(events);
+  // Everything is final offline: events the trajectory does not cover are skipped and counted.
+  onKeyframes(mapper_->process(pose, std::numeric_limits<int64_t>::max()));
+  mapping_s_ += secondsSince(t0);
+}
+
+void OfflinePipeline::finishMapping() {
+  if (!mapper_) return;
+  const auto t0 = Clock::now();
+  EmvsKeyframe last;
+  if (mapper_->finish(&last)) onKeyframes({last});
+  mapping_s_ += secondsSince(t0);
 }
 
 Trajectory3 OfflinePipeline::backendTrajectory() const {
@@ -89,16 +158,20 @@ void writeSplineJson(const std::string& path, const BSpline& spline) {
   out << j.dump(2) << "\n";
 }
 
-Trajectory3 OfflinePipeline::frontendTrajectory() const { return integrateArcs(arcs_, secToNs(0.01)); }
+Trajectory3 OfflinePipeline::frontendTrajectory() const {
+  return integrateArcs(arcs_, secToNs(0.01));
+}
 
 void writeArcsCsv(const std::string& path, const std::vector<ArcEstimate>& arcs) {
   FILE* f = std::fopen(path.c_str(), "w");
   if (!f) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
-  std::fprintf(f, "t_ref,t_start,t_end,omega,v,contrast,confidence,num_events,window_events,status,evaluations\n");
+  std::fprintf(f,
+               "t_ref,t_start,t_end,omega,v,contrast,confidence,num_events,window_events,status,"
+               "evaluations\n");
   for (const ArcEstimate& a : arcs)
-    std::fprintf(f, "%.9f,%.9f,%.9f,%.9f,%.6f,%.9g,%.6f,%u,%zu,%s,%d\n", nsToSec(a.t_ref_ns), nsToSec(a.t_start_ns),
-                 nsToSec(a.t_end_ns), a.omega, a.v, a.contrast, a.confidence, a.num_events, a.window_events,
-                 toString(a.status), a.evaluations);
+    std::fprintf(f, "%.9f,%.9f,%.9f,%.9f,%.6f,%.9g,%.6f,%u,%zu,%s,%d\n", nsToSec(a.t_ref_ns),
+                 nsToSec(a.t_start_ns), nsToSec(a.t_end_ns), a.omega, a.v, a.contrast, a.confidence,
+                 a.num_events, a.window_events, toString(a.status), a.evaluations);
   std::fclose(f);
 }
 
@@ -111,7 +184,7 @@ nlohmann::json OfflinePipeline::report() const {
   j["duration_s"] = duration;
   j["events"] = events_;
   j["windows"] = arcs_.size();
-  const double total_s = frontend_s_ + backend_s_;
+  const double total_s = frontend_s_ + backend_s_ + mapping_s_;
   j["processing_s"] = total_s;
   j["real_time_factor"] = duration > 0 ? total_s / duration : 0.0;
   j["stages"]["frontend"] = {{"processing_s", frontend_s_},
@@ -126,18 +199,38 @@ nlohmann::json OfflinePipeline::report() const {
                              {"objective_evaluations", st.evaluations}};
   if (backend_) {
     const BackendStats& b = backend_->stats();
-    j["stages"]["backend"] = {{"processing_s", backend_s_},
-                              {"real_time_factor", duration > 0 ? backend_s_ / duration : 0.0},
-                              {"solver_s", b.solver_s},
-                              {"updates", b.updates},
-                              {"volumes", b.volumes},
-                              {"volumes_skipped", b.volumes_skipped},
-                              {"objective_evaluations", b.evaluations},
-                              {"refinements_rejected", b.rejected},
-                              {"resets", b.resets},
-                              {"events_outside_sensor", b.events_outside},
-                              {"events_out_of_order", b.events_out_of_order},
-                              {"control_points", backend_->hasSpline() ? backend_->spline().numControlPoints() : 0}};
+    j["stages"]["backend"] = {
+        {"processing_s", backend_s_},
+        {"real_time_factor", duration > 0 ? backend_s_ / duration : 0.0},
+        {"solver_s", b.solver_s},
+        {"updates", b.updates},
+        {"volumes", b.volumes},
+        {"volumes_skipped", b.volumes_skipped},
+        {"objective_evaluations", b.evaluations},
+        {"refinements_rejected", b.rejected},
+        {"resets", b.resets},
+        {"events_outside_sensor", b.events_outside},
+        {"events_out_of_order", b.events_out_of_order},
+        {"control_points", backend_->hasSpline() ? backend_->spline().numControlPoints() : 0}};
+  }
+  if (mapper_) {
+    j["stages"]["mapping"] = {
+        {"processing_s", mapping_s_},
+        {"real_time_factor", duration > 0 ? mapping_s_ / duration : 0.0},
+        {"trajectory", backend_ && backend_->hasSpline() ? "backend" : "frontend"},
+        {"keyframes", map_keyframes_},
+        {"events", map_counts_.events},
+        {"events_voted", map_counts_.voted},
+        {"events_not_covered", map_counts_.skipped_time},
+        {"events_nan_pose", map_counts_.skipped_nan},
+        {"events_behind", map_counts_.skipped_behind},
+        {"events_outside_sensor", map_counts_.skipped_outside},
+        {"events_out_of_order", mapper_->droppedOutOfOrder()},
+        {"events_dropped_pending", mapper_->droppedPending()},
+        {"keyframe_points", map_counts_.points},
+        {"outliers_removed", map_counts_.outliers},
+        {"map_points", map_->size()},
+        {"map_points_dropped", map_->dropped()}};
   }
   j["dropped"] = {{"events_outside_sensor", st.events_outside},
                   {"events_out_of_order", st.events_out_of_order},
@@ -154,6 +247,7 @@ void OfflinePipeline::writeOutputs(const std::string& out_dir, const nlohmann::j
     writeTum(out_dir + "/backend.tum", backendTrajectory());
     writeSplineJson(out_dir + "/spline.json", backend_->spline());
   }
+  if (map_) writePly(out_dir + "/map.ply", toPlyCloud(map_->points()));
   nlohmann::json j = report();
   for (auto it = extra.begin(); it != extra.end(); ++it) j[it.key()] = it.value();
   std::ofstream(out_dir + "/report.json") << j.dump(2) << "\n";

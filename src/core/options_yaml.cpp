@@ -23,7 +23,8 @@ class Section {
     const YAML::Node& p = parent;
     present_ = p && p.IsMap() && p[name] && !p[name].IsNull();
     if (present_) node_ = p[name];
-    if (present_ && !node_.IsMap()) throw std::invalid_argument("section '" + name + "' must be a map");
+    if (present_ && !node_.IsMap())
+      throw std::invalid_argument("section '" + name + "' must be a map");
   }
   template <typename T>
   void get(const char* key, T* value) {
@@ -123,16 +124,58 @@ void loadOptions(const YAML::Node& node, const std::string& section, BackendOpti
   o->validate();
 }
 
+void loadOptions(const YAML::Node& node, const std::string& section, GlobalMapOptions* o,
+                 std::vector<std::string>* warnings) {
+  Section s(node, section);
+  s.get("voxel_size_m", &o->voxel_size_m);
+  s.get("max_points", &o->max_points);
+  s.reportUnknown(warnings);
+  o->validate();
+}
+
+void loadOptions(const YAML::Node& node, const std::string& section, EmvsOptions* o,
+                 GlobalMapOptions* global_map, std::vector<std::string>* warnings) {
+  Section s(node, section);
+  s.nested("volume");
+  s.nested("global_map");
+  if (s.present()) {
+    loadOptions(s.node(), "volume", &o->volume, warnings);
+    loadOptions(s.node(), "global_map", global_map, warnings);
+  }
+  s.get("adaptive_kernel_size", &o->adaptive_kernel_size);
+  s.get("adaptive_sigma_px", &o->adaptive_sigma_px);
+  s.get("adaptive_c", &o->adaptive_c);
+  s.get("min_confidence", &o->min_confidence);
+  s.get("nms_radius_px", &o->nms_radius_px);
+  s.get("nms_planes", &o->nms_planes);
+  s.get("local_max_ratio", &o->local_max_ratio);
+  s.get("local_max_window_px", &o->local_max_window_px);
+  s.get("median_filter_size", &o->median_filter_size);
+  s.get("subpixel", &o->subpixel);
+  s.get("max_depth_m", &o->max_depth_m);
+  s.get("outlier_radius_m", &o->outlier_radius_m);
+  s.get("outlier_min_neighbours", &o->outlier_min_neighbours);
+  s.get("kf_distance_m", &o->kf_distance_m);
+  s.get("kf_rotation_deg", &o->kf_rotation_deg);
+  s.get("max_events_per_keyframe", &o->max_events_per_keyframe);
+  s.get("pose_slice_ns", &o->pose_slice_ns);
+  s.get("max_pending_events", &o->max_pending_events);
+  s.reportUnknown(warnings);
+  o->validate();
+}
+
 std::string defaultConfigDir() {
   if (const char* env = std::getenv("VWE_VO_CONFIG_DIR")) return env;
   return VWE_VO_CONFIG_DIR;
 }
 
-PipelineConfig loadPipelineConfig(const std::string& path, const std::string& default_calibration_path) {
+PipelineConfig loadPipelineConfig(const std::string& path,
+                                  const std::string& default_calibration_path) {
   PipelineConfig cfg;
   cfg.path = path;
   cfg.T_base_cam = defaultTBaseCam();
-  std::string calib = default_calibration_path.empty() ? defaultConfigDir() + "/davis346.yaml" : default_calibration_path;
+  std::string calib = default_calibration_path.empty() ? defaultConfigDir() + "/davis346.yaml"
+                                                       : default_calibration_path;
   if (!path.empty()) {
     YAML::Node root;
     try {
@@ -140,21 +183,25 @@ PipelineConfig loadPipelineConfig(const std::string& path, const std::string& de
     } catch (const YAML::Exception& e) {
       throw std::runtime_error(path + ": cannot read configuration: " + e.what());
     }
-    static const std::set<std::string> known = {"camera_calibration", "T_base_cam", "frontend", "backend", "mapping", "simulator"};
+    static const std::set<std::string> known = {
+        "camera_calibration", "T_base_cam", "frontend", "backend", "mapping", "simulator"};
     for (const auto& kv : root)
       if (!known.count(kv.first.as<std::string>()))
-        cfg.warnings.push_back(path + ": unknown top-level key '" + kv.first.as<std::string>() + "' ignored");
+        cfg.warnings.push_back(path + ": unknown top-level key '" + kv.first.as<std::string>() +
+                               "' ignored");
     if (root["camera_calibration"]) {
       calib = root["camera_calibration"].as<std::string>();
       if (!calib.empty() && calib[0] != '/') {
         const size_t slash = path.find_last_of('/');
-        calib = (slash == std::string::npos ? std::string(".") : path.substr(0, slash)) + "/" + calib;
+        calib =
+            (slash == std::string::npos ? std::string(".") : path.substr(0, slash)) + "/" + calib;
       }
     }
     cfg.T_base_cam = loadTBaseCam(path);
     try {
       loadOptions(root, "frontend", &cfg.frontend, &cfg.warnings);
       loadOptions(root, "backend", &cfg.backend, &cfg.warnings);
+      loadOptions(root, "mapping", &cfg.mapping, &cfg.global_map, &cfg.warnings);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument(path + ": " + e.what());
     }

@@ -1,8 +1,10 @@
 // vwe_vo_offline: runs the pipeline synchronously at full speed over a rosbag or an Event
 // Camera Dataset folder and writes trajectories, arcs and a JSON report.
 //   vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out OUTDIR
+#include <nav_msgs/Odometry.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <sensor_msgs/Imu.h>
 #include <sys/stat.h>
 
 #include <chrono>
@@ -10,9 +12,6 @@
 #include <iostream>
 #include <map>
 #include <string>
-
-#include <nav_msgs/Odometry.h>
-#include <sensor_msgs/Imu.h>
 
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/core/config.h"
@@ -22,12 +21,18 @@
 namespace {
 
 const char* kUsage =
-    "usage: vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out OUTDIR\n"
-    "                      [--use-odom] [--frontend-only] [--events-topic T] [--odom-topic T] [--imu-topic T]\n"
-    "                      [--quiet]\n"
+    "usage: vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out "
+    "OUTDIR\n"
+    "                      [--use-odom] [--frontend-only] [--events-topic T] [--odom-topic T] "
+    "[--imu-topic T]\n"
+    "                      [--no-map] [--depth-png] [--quiet]\n"
     "  Runs the front-end and the back-end over recorded events at full speed. Writes\n"
     "  OUTDIR/frontend.tum, OUTDIR/arcs.csv, OUTDIR/report.json and (unless --frontend-only)\n"
-    "  OUTDIR/backend.tum and OUTDIR/spline.json. An ECD folder holds events.txt or events.txt.gz,\n"
+    "  OUTDIR/backend.tum and OUTDIR/spline.json. Then (unless --no-map) a second pass over the\n"
+    "  events maps them (EMVS) on the back-end's trajectory (the front-end's with "
+    "--frontend-only)\n"
+    "  into OUTDIR/map.ply (binary PLY, odom frame); --depth-png adds OUTDIR/depth/depth_NNNN.png\n"
+    "  per keyframe. An ECD folder holds events.txt or events.txt.gz,\n"
     "  calib.txt and optionally extrinsics.txt (T_base_cam, overrides the config).\n";
 
 bool fileExists(const std::string& p) {
@@ -55,8 +60,8 @@ class Progress {
     if (std::chrono::duration<double>(now - last_).count() < 0.5) return;
     last_ = now;
     const double t = p.firstTime() >= 0 ? vwe_vo::dtSec(p.lastTime(), p.firstTime()) : 0.0;
-    std::fprintf(stderr, "\r[vwe_vo_offline] %6.1f / %.1f s of data, %zu windows, %.1f M events   ", t, total_s,
-                 p.arcs().size(), p.events() * 1e-6);
+    std::fprintf(stderr, "\r[vwe_vo_offline] %6.1f / %.1f s of data, %zu windows, %.1f M events   ",
+                 t, total_s, p.arcs().size(), p.events() * 1e-6);
   }
   void done() {
     if (!quiet_) std::fprintf(stderr, "\n");
@@ -71,7 +76,7 @@ class Progress {
 
 int main(int argc, char** argv) {
   std::map<std::string, std::string> args;
-  bool use_odom = false, quiet = false, frontend_only = false;
+  bool use_odom = false, quiet = false, frontend_only = false, map = true, depth_png = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
@@ -81,10 +86,15 @@ int main(int argc, char** argv) {
       use_odom = true;
     } else if (a == "--frontend-only") {
       frontend_only = true;
+    } else if (a == "--no-map") {
+      map = false;
+    } else if (a == "--depth-png") {
+      depth_png = true;
     } else if (a == "--quiet") {
       quiet = true;
-    } else if ((a == "--bag" || a == "--ecd" || a == "--config" || a == "--nominal-speed" || a == "--out" ||
-                a == "--events-topic" || a == "--odom-topic" || a == "--imu-topic") &&
+    } else if ((a == "--bag" || a == "--ecd" || a == "--config" || a == "--nominal-speed" ||
+                a == "--out" || a == "--events-topic" || a == "--odom-topic" ||
+                a == "--imu-topic") &&
                i + 1 < argc) {
       args[a] = argv[++i];
     } else {
@@ -114,8 +124,10 @@ int main(int argc, char** argv) {
       const vwe_vo::EcdCalibration c = vwe_vo::readEcdCalibration(dir + "/calib.txt");
       cfg.camera.fx = c.fx, cfg.camera.fy = c.fy, cfg.camera.cx = c.cx, cfg.camera.cy = c.cy;
       cfg.camera.distortion = {c.k1, c.k2, c.p1, c.p2, c.k3};
-      if (fileExists(dir + "/extrinsics.txt")) cfg.T_base_cam = vwe_vo::readPoseLine(dir + "/extrinsics.txt");
-      const std::string events_path = fileExists(dir + "/events.txt") ? dir + "/events.txt" : dir + "/events.txt.gz";
+      if (fileExists(dir + "/extrinsics.txt"))
+        cfg.T_base_cam = vwe_vo::readPoseLine(dir + "/extrinsics.txt");
+      const std::string events_path =
+          fileExists(dir + "/events.txt") ? dir + "/events.txt" : dir + "/events.txt.gz";
       if (!quiet) std::fprintf(stderr, "[vwe_vo_offline] reading %s\n", events_path.c_str());
       ecd_events = events_path;
       input = {{"ecd", dir}};
@@ -131,7 +143,8 @@ int main(int argc, char** argv) {
         progress.update(pipeline, total);
       }
     } else {
-      const std::string events_topic = args.count("--events-topic") ? args["--events-topic"] : "/dvs/events";
+      const std::string events_topic =
+          args.count("--events-topic") ? args["--events-topic"] : "/dvs/events";
       const std::string odom_topic = args.count("--odom-topic") ? args["--odom-topic"] : "/odom";
       const std::string imu_topic = args.count("--imu-topic") ? args["--imu-topic"] : "/dvs/imu";
       rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
@@ -145,8 +158,9 @@ int main(int argc, char** argv) {
           const auto msg = m.instantiate<vwe_vo::EventArray>();
           if (!msg) continue;
           if (int(msg->width) != cfg.camera.width || int(msg->height) != cfg.camera.height)
-            throw std::runtime_error("EventArray is " + std::to_string(msg->width) + "x" + std::to_string(msg->height) +
-                                     " but the calibration is " + std::to_string(cfg.camera.width) + "x" +
+            throw std::runtime_error("EventArray is " + std::to_string(msg->width) + "x" +
+                                     std::to_string(msg->height) + " but the calibration is " +
+                                     std::to_string(cfg.camera.width) + "x" +
                                      std::to_string(cfg.camera.height));
           vwe_vo::eventsFromMsg(*msg, &events, &conv);
           pipeline.addEvents(events);
@@ -154,24 +168,59 @@ int main(int argc, char** argv) {
           progress.update(pipeline, total);
         } else if (use_odom && m.getTopic() == odom_topic) {
           if (const auto o = m.instantiate<nav_msgs::Odometry>())
-            pipeline.addOdometry(vwe_vo::toNs(o->header.stamp), o->twist.twist.linear.x, o->twist.twist.angular.z);
+            pipeline.addOdometry(vwe_vo::toNs(o->header.stamp), o->twist.twist.linear.x,
+                                 o->twist.twist.angular.z);
         } else if (m.getTopic() == imu_topic) {
           if (const auto imu = m.instantiate<sensor_msgs::Imu>()) {
-            const vwe_vo::Vec3 w_C(imu->angular_velocity.x, imu->angular_velocity.y, imu->angular_velocity.z);
+            const vwe_vo::Vec3 w_C(imu->angular_velocity.x, imu->angular_velocity.y,
+                                   imu->angular_velocity.z);
             pipeline.addGyro(vwe_vo::toNs(imu->header.stamp), (cfg.T_base_cam.linear() * w_C).z());
           }
         }
       }
-      input = {{"bag", args["--bag"]}, {"event_packets", packets}, {"events_dropped_in_conversion", conv.dropped}};
+      input = {{"bag", args["--bag"]},
+               {"event_packets", packets},
+               {"events_dropped_in_conversion", conv.dropped}};
     }
     pipeline.finish();
     progress.done();
-    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+    if (map) {
+      // Second pass: the mapper needs the final trajectory, and the events are not kept.
+      if (!quiet) std::fprintf(stderr, "[vwe_vo_offline] mapping\n");
+      pipeline.startMapping(depth_png ? args["--out"] + "/depth" : "");
+      vwe_vo::EventVector chunk;
+      if (args.count("--ecd")) {
+        vwe_vo::EcdEventReader reader(ecd_events, cfg.camera.width, cfg.camera.height);
+        while (reader.read(200000, &chunk) > 0) pipeline.addMappingEvents(chunk);
+      } else {
+        const std::string events_topic =
+            args.count("--events-topic") ? args["--events-topic"] : "/dvs/events";
+        rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
+        rosbag::View view(bag, rosbag::TopicQuery({events_topic}));
+        vwe_vo::EventConversionStats conv;
+        for (const rosbag::MessageInstance& m : view)
+          if (const auto msg = m.instantiate<vwe_vo::EventArray>()) {
+            vwe_vo::eventsFromMsg(*msg, &chunk, &conv);
+            pipeline.addMappingEvents(chunk);
+          }
+      }
+      pipeline.finishMapping();
+    }
+    const double wall =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
     pipeline.writeOutputs(args["--out"], {{"input", input}, {"wall_s", wall}});
     const nlohmann::json r = pipeline.report();
-    std::fprintf(stderr, "[vwe_vo_offline] %zu events, %zu windows over %.1f s in %.2f s (real-time factor %.3f) -> %s\n",
-                 pipeline.events(), pipeline.arcs().size(), r["duration_s"].get<double>(), pipeline.processingSeconds(),
-                 r["real_time_factor"].get<double>(), args["--out"].c_str());
+    std::fprintf(stderr,
+                 "[vwe_vo_offline] %zu events, %zu windows over %.1f s in %.2f s (real-time factor "
+                 "%.3f) -> %s\n",
+                 pipeline.events(), pipeline.arcs().size(), r["duration_s"].get<double>(),
+                 pipeline.processingSeconds(), r["real_time_factor"].get<double>(),
+                 args["--out"].c_str());
+    if (pipeline.map())
+      std::fprintf(stderr,
+                   "[vwe_vo_offline] map: %zu points from %zu keyframes in %.2f s -> %s/map.ply\n",
+                   pipeline.map()->size(), r["stages"]["mapping"]["keyframes"].get<size_t>(),
+                   r["stages"]["mapping"]["processing_s"].get<double>(), args["--out"].c_str());
   } catch (const std::exception& e) {
     std::cerr << "\nvwe_vo_offline: error: " << e.what() << "\n";
     return 1;

@@ -1,8 +1,8 @@
 // Every YAML file shipped in config/ loads, and the loader reports what it cannot use.
+#include <dirent.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
-#include <dirent.h>
 #include <fstream>
 
 #include "vwe_vo/core/options_yaml.h"
@@ -32,7 +32,8 @@ TEST(OptionsYaml, EveryShippedConfigLoads) {
     } else {
       PipelineConfig cfg;
       ASSERT_NO_THROW(cfg = loadPipelineConfig(path)) << path;
-      EXPECT_TRUE(cfg.warnings.empty()) << path << ": " << (cfg.warnings.empty() ? "" : cfg.warnings[0]);
+      EXPECT_TRUE(cfg.warnings.empty())
+          << path << ": " << (cfg.warnings.empty() ? "" : cfg.warnings[0]);
       ++pipeline_configs;
     }
   }
@@ -54,15 +55,41 @@ TEST(OptionsYaml, ValuesOverrideDefaultsAndNestedSectionsWork) {
 
 TEST(OptionsYaml, UnknownKeysAreReportedAndBadValuesRefused) {
   const std::string cal = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
-  const PipelineConfig cfg =
-      loadPipelineConfig(writeTemp("cfg_typo.yaml", "camera_calibration: " + cal + "\nfrontend:\n  windw_duration_s: 0.5\n"));
+  const PipelineConfig cfg = loadPipelineConfig(writeTemp(
+      "cfg_typo.yaml", "camera_calibration: " + cal + "\nfrontend:\n  windw_duration_s: 0.5\n"));
   ASSERT_EQ(cfg.warnings.size(), 1u);
   EXPECT_NE(cfg.warnings[0].find("frontend.windw_duration_s"), std::string::npos);
   try {
-    loadPipelineConfig(writeTemp("cfg_bad.yaml", "camera_calibration: " + cal + "\nfrontend:\n  window_duration_s: -1\n"));
+    loadPipelineConfig(writeTemp(
+        "cfg_bad.yaml", "camera_calibration: " + cal + "\nfrontend:\n  window_duration_s: -1\n"));
     FAIL();
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("window_duration_s"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("cfg_bad.yaml"), std::string::npos) << e.what();
+  }
+}
+
+TEST(OptionsYaml, MappingSection) {
+  const std::string cal = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
+  const PipelineConfig cfg = loadPipelineConfig(writeTemp(
+      "cfg_map.yaml",
+      "camera_calibration: " + cal +
+          "\nmapping:\n  kf_distance_m: 0.5\n  nms_radius_px: 2\n  volume: {num_planes: 64}\n"
+          "  global_map: {voxel_size_m: 0.1}\n  median_filtr_size: 3\n"));
+  EXPECT_EQ(cfg.mapping.kf_distance_m, 0.5);
+  EXPECT_EQ(cfg.mapping.nms_radius_px, 2);
+  EXPECT_EQ(cfg.mapping.volume.num_planes, 64);
+  EXPECT_EQ(cfg.mapping.volume.z_max_m,
+            EmvsOptions().volume.z_max_m);  // EMVS defaults, not the VWE's
+  EXPECT_EQ(cfg.global_map.voxel_size_m, 0.1);
+  EXPECT_EQ(cfg.mapping.median_filter_size, EmvsOptions().median_filter_size);
+  ASSERT_EQ(cfg.warnings.size(), 1u);
+  EXPECT_NE(cfg.warnings[0].find("mapping.median_filtr_size"), std::string::npos);
+  try {
+    loadPipelineConfig(writeTemp(
+        "cfg_map_bad.yaml", "camera_calibration: " + cal + "\nmapping:\n  nms_radius_px: -1\n"));
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("nms_radius_px"), std::string::npos) << e.what();
   }
 }

@@ -11,41 +11,48 @@
 #include <deque>
 #include <functional>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <unordered_map>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/events.h"
 #include "vwe_vo/core/math.h"
 #include "vwe_vo/core/projective_volume.h"
+#include "vwe_vo/core/thread_pool.h"
 #include "vwe_vo/core/trajectory_model.h"
 
 namespace vwe_vo {
 
 struct EmvsOptions {
   EmvsOptions();
-  VolumeOptions volume;                 // the DSI (defaults: full resolution, 100 planes, 0.5-8 m)
-  int adaptive_kernel_size = 5;         // adaptive threshold: Gaussian window [grid px], odd >= 3
-  double adaptive_sigma_px = 0.0;       // its sigma [grid px]; 0: from the window as in OpenCV
-  double adaptive_c = 5.0;              // keep confidence > local Gaussian mean + C [1/255 of the max confidence]
-  double min_confidence = 0.0;          // and confidence >= this [votes]
-  double local_max_ratio = 0.5;         // and confidence >= this fraction of the maximum in the window below; 0 = off
-  int local_max_window_px = 15;         // ... window [grid px], odd
-  int median_filter_size = 5;           // masked median of the depth map [grid px], odd; 1 = off
-  bool subpixel = true;                 // refine the argmax with a parabola in inverse depth
-  double max_depth_m = 8.0;             // drop points deeper than this [m]
-  double outlier_radius_m = 0.05;       // radius outlier removal: neighbourhood radius [m]; 0 = off
-  int outlier_min_neighbours = 3;       // ... points needed within the radius (not counting itself)
-  double kf_distance_m = 0.3;           // start a new keyframe after this much translation [m]
-  double kf_rotation_deg = 15.0;        // ... or this much rotation [deg]
-  size_t max_events_per_keyframe = 2000000;  // ... or this many voted events (bounds time and memory)
-  int64_t pose_slice_ns = 500000;       // events within this span share one pose [ns]; 0 = a pose per event
-  size_t vote_batch = 200000;           // rays voted at once (incremental DSI) [events]
-  size_t max_pending_events = 8000000;  // events waiting for the trajectory; the oldest are dropped beyond
-  void validate() const;                // throws std::invalid_argument naming the field
+  VolumeOptions volume;            // the DSI (defaults: full resolution, 100 planes, 0.5-8 m)
+  int adaptive_kernel_size = 5;    // adaptive threshold: Gaussian window [grid px], odd >= 3
+  double adaptive_sigma_px = 0.0;  // its sigma [grid px]; 0: from the window as in OpenCV
+  double adaptive_c =
+      5.0;  // keep confidence > local Gaussian mean + C [1/255 of the max confidence]
+  double min_confidence = 0.0;  // and confidence >= this [votes]
+  int nms_radius_px =
+      1;  // and the voxel is the maximum of its (2r+1)^2 pixels x nms_planes [grid px]; 0 = off
+  int nms_planes = 0;  // ... over the planes within this many of its own; 0 = all planes
+  double local_max_ratio =
+      0.5;  // and confidence >= this fraction of the maximum in the window below; 0 = off
+  int local_max_window_px = 15;  // ... window [grid px], odd
+  int median_filter_size = 5;    // masked median of the depth map [grid px], odd; 1 = off
+  bool subpixel = true;      // refine the argmax between planes (peak centroid in inverse depth)
+  double max_depth_m = 8.0;  // drop points deeper than this [m]
+  double outlier_radius_m = 0.2;   // radius outlier removal: neighbourhood radius [m] (the cloud is
+                                   // sparse after NMS); 0 = off
+  int outlier_min_neighbours = 3;  // ... points needed within the radius (not counting itself)
+  double kf_distance_m = 0.3;      // close a keyframe after this much translation [m]
+  double kf_rotation_deg = 15.0;   // ... or this much rotation [deg]
+  size_t max_events_per_keyframe = 2000000;  // ... or this many events (bounds time and memory)
+  int64_t pose_slice_ns =
+      500000;  // events within this span share one pose [ns]; 0 = a pose per event
+  size_t max_pending_events =
+      8000000;            // events waiting for the trajectory; the oldest are dropped beyond
+  void validate() const;  // throws std::invalid_argument naming the field
 };
 
 /// One point of a cloud: position and confidence (the DSI maximum, in votes).
@@ -55,16 +62,16 @@ struct MapPoint {
 };
 
 struct EmvsCounts {
-  size_t events = 0;          // events handed to the keyframe
-  size_t voted = 0;           // events whose ray was voted
-  size_t skipped_time = 0;    // events the trajectory does not cover (not extrapolated)
-  size_t skipped_nan = 0;     // events whose pose is not finite
-  size_t skipped_behind = 0;  // rays not pointing in front of the keyframe camera
-  size_t skipped_outside = 0; // events outside the sensor
-  size_t votes = 0;           // plane votes cast
-  size_t selected = 0;        // pixels passing the thresholds (before outlier removal)
-  size_t outliers = 0;        // points removed by the radius outlier removal
-  size_t points = 0;          // points in the result
+  size_t events = 0;           // events handed to the keyframe
+  size_t voted = 0;            // events whose ray was voted
+  size_t skipped_time = 0;     // events the trajectory does not cover (not extrapolated)
+  size_t skipped_nan = 0;      // events whose pose is not finite
+  size_t skipped_behind = 0;   // rays not pointing in front of the keyframe camera
+  size_t skipped_outside = 0;  // events outside the sensor
+  size_t votes = 0;            // plane votes cast
+  size_t selected = 0;         // pixels passing the thresholds (before outlier removal)
+  size_t outliers = 0;         // points removed by the radius outlier removal
+  size_t points = 0;           // points in the result
 };
 
 /// The depth of one DSI: maps at the grid resolution of the volume (float, 0 = none).
@@ -79,35 +86,40 @@ struct DepthExtraction {
 DepthExtraction extractDepth(const ProjectiveVolume& volume, const EmvsOptions& options);
 
 struct EmvsKeyframe {
-  int64_t t_kf_ns = 0;                 // keyframe (reference) time
-  int64_t t_end_ns = 0;                // last event voted
+  int64_t t_kf_ns = 0;     // reference time of the DSI (pose T_odom_cam)
+  int64_t t_begin_ns = 0;  // first event voted
+  int64_t t_end_ns = 0;    // last event voted
   Pose3 T_odom_cam = Pose3::Identity();
-  cv::Mat depth_m;                     // see DepthExtraction
+  cv::Mat depth_m;  // see DepthExtraction
   cv::Mat confidence;
-  std::vector<MapPoint> points_cam;    // in the keyframe camera frame
-  std::vector<MapPoint> points_odom;   // the same points in odom
+  std::vector<MapPoint> points_cam;   // in the keyframe camera frame
+  std::vector<MapPoint> points_odom;  // the same points in odom
   EmvsCounts counts;
 };
 
 /// Keyframe cloud from a DSI: depth extraction, points through the volume's virtual pinhole,
 /// max depth, radius outlier removal, transform to odom. Fills everything but times/event counts.
-void extractKeyframe(const ProjectiveVolume& volume, const EmvsOptions& options, const Pose3& T_odom_cam,
-                     EmvsKeyframe* keyframe);
+void extractKeyframe(const ProjectiveVolume& volume, const EmvsOptions& options,
+                     const Pose3& T_odom_cam, EmvsKeyframe* keyframe);
 
 /// One-shot EMVS for a batch of events: the DSI is VweObjective::voteOnly with `T_kf_cam`
 /// giving camera poses relative to the keyframe (its reference time). Events the model does not
 /// cover are skipped and counted. T_odom_kf places the cloud in odom.
-EmvsKeyframe mapKeyframe(const EventVector& events, const TrajectoryModel& T_kf_cam, const Pose3& T_odom_kf,
-                         const CameraModel& camera, const EmvsOptions& options);
+EmvsKeyframe mapKeyframe(const EventVector& events, const TrajectoryModel& T_kf_cam,
+                         const Pose3& T_odom_kf, const CameraModel& camera,
+                         const EmvsOptions& options);
 
 /// Radius outlier removal with a voxel hash of cell = radius: keeps points with at least
 /// min_neighbours others within radius_m. Cost O(points x neighbours). Returns how many it removed.
 size_t removeRadiusOutliers(std::vector<MapPoint>* points, double radius_m, int min_neighbours);
 
-/// The incremental mapper: events are buffered until the trajectory covers them, voted into the
-/// current keyframe's DSI as soon as it does, and a keyframe is closed (depth map and cloud
-/// extracted) when the camera has moved kf_distance_m or turned kf_rotation_deg since it, or it
-/// holds max_events_per_keyframe events. Not thread-safe: one worker calls it.
+/// The incremental mapper: events are buffered until the trajectory covers them, then gathered
+/// (with the pose of their time slice) into the current keyframe; a keyframe is closed when the
+/// camera has moved kf_distance_m or turned kf_rotation_deg since its first event, or it holds
+/// max_events_per_keyframe events. Closing builds the DSI with its reference view at the
+/// keyframe's median event (half the events on each side: the rays spread symmetrically around
+/// the true depth), votes it on the volume's threads and extracts depth map and cloud.
+/// Not thread-safe: one worker calls it.
 class EmvsMapper {
  public:
   /// T_odom_cam at t; false if the trajectory does not cover t.
@@ -117,7 +129,7 @@ class EmvsMapper {
 
   /// Buffers events (time-ordered; events older than the newest held are dropped and counted).
   void addEvents(const EventVector& events);
-  /// Votes every buffered event with t <= t_final_ns (the time up to which the trajectory is
+  /// Gathers every buffered event with t <= t_final_ns (the time up to which the trajectory is
   /// final): events it does not cover are skipped and counted, later events stay buffered.
   /// Returns the keyframes closed meanwhile.
   std::vector<EmvsKeyframe> process(const PoseFunction& T_odom_cam, int64_t t_final_ns);
@@ -134,23 +146,33 @@ class EmvsMapper {
   const ProjectiveVolume& volume() const { return *volume_; }
 
  private:
-  void voteBatch();
+  /// An event of the current keyframe: pixel and the pose slice it uses.
+  struct KeyframeEvent {
+    uint16_t x, y;
+    uint32_t slice;
+  };
+  struct PoseSlice {
+    int64_t t_ns;
+    Pose3 T_odom_cam;
+  };
   void closeKeyframe(EmvsKeyframe* keyframe);
   void startKeyframe(int64_t t_ns, const Pose3& T_odom_cam);
+  void addToKeyframe(const PixelEvent& e, int64_t t_pose_ns, const Pose3& T_odom_cam);
 
   EmvsOptions options_;
   const CameraModel& camera_;
   std::unique_ptr<ProjectiveVolume> volume_;
+  ThreadPool pool_;  // ray building
   std::deque<PixelEvent> pending_;
   size_t dropped_out_of_order_ = 0, dropped_pending_ = 0, num_keyframes_ = 0;
-  // The keyframe being built.
+  // The keyframe being gathered.
   bool active_ = false;
   int64_t t_kf_ns_ = 0, t_last_ns_ = 0;
-  uint64_t kf_generation_ = 0;  // incremented per keyframe started
-  Pose3 T_odom_kf_ = Pose3::Identity(), T_kf_odom_ = Pose3::Identity();
+  Pose3 T_kf_odom_ = Pose3::Identity();  // inverse pose of the keyframe's first event
   EmvsCounts counts_;
-  std::vector<VolumeRay> kf_rays_;  // every ray voted into the DSI (to clear it)
-  std::vector<VolumeRay> batch_;    // rays not voted yet
+  std::vector<KeyframeEvent> kf_events_;
+  std::vector<PoseSlice> kf_slices_;
+  std::vector<VolumeRay> rays_;  // the rays of the last DSI (to clear it)
 };
 
 struct GlobalMapOptions {
@@ -185,6 +207,9 @@ class GlobalMap {
   uint64_t inserts_ = 0;
   size_t dropped_ = 0;
 };
+
+/// Colour-coded depth (BGR8, inverse-depth jet: near red, far blue; black where depth is 0).
+cv::Mat colorizeDepth(const cv::Mat& depth_m, double z_min_m, double z_max_m);
 
 /// A cloud for writePly: rgb and confidence are optional (empty or one per point).
 struct PlyCloud {

@@ -4,12 +4,12 @@
 
 #include <chrono>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "vwe_vo/core/backend.h"
+#include "vwe_vo/core/emvs.h"
 #include "vwe_vo/core/frontend.h"
 #include "vwe_vo/core/options_yaml.h"
 #include "vwe_vo/core/trajectory_io.h"
@@ -36,15 +36,24 @@ class OfflinePipeline {
   /// The back-end (null if config.frontend_only).
   const Backend* backend() const { return backend_.get(); }
 
+  /// Mapping (EMVS) in a second pass over the events, after finish(): on the back-end's refined
+  /// trajectory, or the front-end's dead reckoning with frontend_only. With depth_png_dir, a
+  /// colour-coded depth PNG per keyframe is written there.
+  void startMapping(const std::string& depth_png_dir = "");
+  void addMappingEvents(const EventVector& events);
+  void finishMapping();
+  /// The fused cloud (null before startMapping()).
+  const GlobalMap* map() const { return map_.get(); }
+
   /// Writes frontend.tum, arcs.csv, report.json and, with the back-end, backend.tum and
-  /// spline.json into out_dir (created if missing).
+  /// spline.json, with mapping map.ply (binary), into out_dir (created if missing).
   void writeOutputs(const std::string& out_dir, const nlohmann::json& extra = {}) const;
   nlohmann::json report() const;
 
   size_t events() const { return events_; }
   int64_t firstTime() const { return t_first_; }
   int64_t lastTime() const { return t_last_; }
-  double processingSeconds() const { return frontend_s_ + backend_s_; }
+  double processingSeconds() const { return frontend_s_ + backend_s_ + mapping_s_; }
   const Frontend& frontend() const { return frontend_; }
 
  private:
@@ -56,13 +65,23 @@ class OfflinePipeline {
   size_t events_ = 0;
   int64_t t_first_ = -1, t_last_ = -1;
   double frontend_s_ = 0.0, backend_s_ = 0.0;
+  // Mapping.
+  void onKeyframes(const std::vector<EmvsKeyframe>& keyframes);
+  std::unique_ptr<EmvsMapper> mapper_;
+  std::unique_ptr<GlobalMap> map_;
+  Trajectory3 map_trajectory_;  // T_odom_base used by the mapper
+  std::string depth_png_dir_;
+  EmvsCounts map_counts_;
+  size_t map_keyframes_ = 0;
+  double mapping_s_ = 0.0;
   void runBackend(const EventVector& events, size_t first_new_arc, bool at_end);
 };
 
 /// Writes a spline as JSON: degree, knot epoch, knots [s], control points [m], standstills [s].
 void writeSplineJson(const std::string& path, const BSpline& spline);
 
-/// Writes the arcs as CSV (t_ref, t_start, t_end in s; omega, v, contrast, confidence, events, status).
+/// Writes the arcs as CSV (t_ref, t_start, t_end in s; omega, v, contrast, confidence, events,
+/// status).
 void writeArcsCsv(const std::string& path, const std::vector<ArcEstimate>& arcs);
 
 }  // namespace vwe_vo

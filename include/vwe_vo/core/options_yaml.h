@@ -8,6 +8,7 @@
 
 #include "vwe_vo/core/backend.h"
 #include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/emvs.h"
 #include "vwe_vo/core/frontend.h"
 #include "vwe_vo/core/math.h"
 
@@ -23,22 +24,30 @@ void loadOptions(const YAML::Node& node, const std::string& section, FrontendOpt
                  std::vector<std::string>* warnings);
 void loadOptions(const YAML::Node& node, const std::string& section, BackendOptions* options,
                  std::vector<std::string>* warnings);
+void loadOptions(const YAML::Node& node, const std::string& section, GlobalMapOptions* options,
+                 std::vector<std::string>* warnings);
+/// The mapping: section (EmvsOptions with nested volume: and global_map:).
+void loadOptions(const YAML::Node& node, const std::string& section, EmvsOptions* options,
+                 GlobalMapOptions* global_map, std::vector<std::string>* warnings);
 
 /// Everything a pipeline run needs from one configuration file.
 struct PipelineConfig {
-  std::string path;                // the file read (empty: defaults)
-  CameraCalibration camera;        // from `camera_calibration` (relative to the file's folder)
+  std::string path;          // the file read (empty: defaults)
+  CameraCalibration camera;  // from `camera_calibration` (relative to the file's folder)
   Pose3 T_base_cam = Pose3::Identity();
   FrontendOptions frontend;
   BackendOptions backend;
-  bool frontend_only = false;      // skip the back-end (set by the caller, not the file)
+  EmvsOptions mapping;
+  GlobalMapOptions global_map;
+  bool frontend_only = false;         // skip the back-end (set by the caller, not the file)
   std::vector<std::string> warnings;  // unknown keys and the like
 };
 
 /// Reads a configuration file (throws std::runtime_error / std::invalid_argument naming the
 /// file and key on malformed values). An empty path gives the shipped defaults, with the
 /// calibration from default_calibration_path.
-PipelineConfig loadPipelineConfig(const std::string& path, const std::string& default_calibration_path = "");
+PipelineConfig loadPipelineConfig(const std::string& path,
+                                  const std::string& default_calibration_path = "");
 
 /// The folder of the package's shipped config/ (compiled in; overridable by $VWE_VO_CONFIG_DIR).
 std::string defaultConfigDir();
