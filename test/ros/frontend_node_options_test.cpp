@@ -66,8 +66,8 @@ int main(int argc, char** argv) {
   spinner.start();
   harness = std::make_unique<Harness>();
   const int result = RUN_ALL_TESTS();
+  spinner.stop();  // no callback may run while the harness (its subscribers, mutex) is destroyed
   harness.reset();
-  spinner.stop();
   ros::shutdown();
   return result;
 }
