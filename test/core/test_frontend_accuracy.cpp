@@ -1,0 +1,100 @@
+// Regression of the front-end's accuracy on the simulator's standard sequences (generated in
+// process with their fixed seeds): yaw rate per window against the ground truth's mean yaw rate
+// over the same window (standstill windows are scored by their status instead), and the
+// rotation RPE of the dead-reckoned trajectory. Thresholds carry margin over the measured values.
+#include <gtest/gtest.h>
+
+#include "vwe_vo/core/evaluation.h"
+#include "vwe_vo/core/frontend.h"
+#include "vwe_vo/core/sim/scene.h"
+#include "vwe_vo/core/sim/sequences.h"
+
+using namespace vwe_vo;
+
+namespace {
+
+struct SequenceRun {
+  std::vector<ArcEstimate> arcs;
+  Trajectory3 ground_truth, estimate;
+  size_t standstill_truth_windows = 0, standstill_detected = 0;
+};
+
+/// Simulates `name` for `seconds` and runs the front-end on it. With odometry, the speed comes
+/// from the simulated wheel speed (as /odom would give it); otherwise the nominal speed is used.
+SequenceRun run(const std::string& name, double seconds, double nominal_speed, bool odometry) {
+  const sim::SequenceSpec spec = sim::findSequence(name);
+  const CameraModel camera(loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+  const auto trajectory = sim::VehicleTrajectory::fromProfile(spec.profile, spec.trajectory);
+  sim::EventSimulator simulator(sim::buildScene(spec.scene, spec.seed, trajectory), camera, spec.T_base_cam,
+                                trajectory, spec.simulator);
+  FrontendOptions options;
+  options.nominal_speed_mps = nominal_speed;
+  Frontend frontend(options, camera, spec.T_base_cam);
+  SequenceRun r;
+  const int64_t end = std::min(trajectory.durationNs(), secToNs(seconds));
+  EventVector chunk;
+  for (int64_t t = 0; t < end;) {
+    const int64_t t1 = std::min(end, t + secToNs(0.05));
+    if (odometry) frontend.addOdometry(t1, trajectory.speed(t1), trajectory.yawRate(t1));
+    chunk.clear();  // simulateUntil appends
+    simulator.simulateUntil(t1, &chunk);
+    frontend.addEvents(chunk);
+    for (const ArcEstimate& a : frontend.process()) r.arcs.push_back(a);
+    t = t1;
+  }
+  r.ground_truth = trajectory.sample(secToNs(0.005));
+  r.estimate = integrateArcs(r.arcs, secToNs(0.01));
+  EXPECT_EQ(frontend.stats().resets, 0u);
+  EXPECT_EQ(frontend.stats().events_out_of_order, 0u);
+  for (const ArcEstimate& a : r.arcs) {
+    const bool still = trajectory.speed(a.t_start_ns) < 1e-3 && trajectory.speed(a.t_end_ns) < 1e-3;
+    r.standstill_truth_windows += still;
+    r.standstill_detected += still && a.status == ArcStatus::kStandstill;
+  }
+  return r;
+}
+
+WindowYawRateResult windowYawRates(const SequenceRun& r) {
+  std::vector<WindowYawRate> windows;
+  for (const ArcEstimate& a : r.arcs)
+    windows.push_back({a.t_start_ns, a.t_end_ns, a.omega, a.status == ArcStatus::kStandstill});
+  return evaluateWindowYawRates(r.ground_truth, windows);
+}
+
+double rotationRmse(const SequenceRun& r) {
+  EvaluationOptions o;
+  return evaluate(r.ground_truth, r.estimate, o).rpe.rot_rmse_deg_s;
+}
+
+}  // namespace
+
+TEST(FrontendAccuracy, IndoorCircle) {
+  const SequenceRun r = run("indoor_circle", 6.0, 0.4, false);
+  const WindowYawRateResult w = windowYawRates(r);
+  ASSERT_GE(w.windows, 15u);
+  EXPECT_LE(w.rmse_deg_s, 1.0);  // measured 0.36
+  EXPECT_LE(rotationRmse(r), 0.6);  // measured 0.22
+  for (const ArcEstimate& a : r.arcs) EXPECT_EQ(a.status, ArcStatus::kOk);
+}
+
+TEST(FrontendAccuracy, IndoorStraight) {
+  const SequenceRun r = run("indoor_straight", 6.0, 0.4, false);
+  const WindowYawRateResult w = windowYawRates(r);
+  ASSERT_GE(w.windows, 15u);
+  EXPECT_LE(w.rmse_deg_s, 1.0);  // measured 0.34
+  EXPECT_LE(rotationRmse(r), 0.6);  // measured 0.19
+}
+
+TEST(FrontendAccuracy, IndoorLongWithStandstillAndOdometry) {
+  const SequenceRun r = run("indoor_long", 30.5, 0.35, true);
+  const WindowYawRateResult w = windowYawRates(r);
+  ASSERT_GE(w.windows, 60u);
+  // The standstill (3 s) is reported as such, not as a random yaw rate.
+  ASSERT_GE(r.standstill_truth_windows, 8u);
+  EXPECT_GE(r.standstill_detected, r.standstill_truth_windows - 1);
+  EXPECT_LE(w.median_abs_deg_s, 0.5);  // measured 0.18
+  // Regression guards, not the 1.0 deg/s goal: windows straddling the 0.3 s yaw-rate
+  // ramps of this sequence dominate the RMSE (the median is small).
+  EXPECT_LE(w.rmse_deg_s, 3.0);     // measured 2.31
+  EXPECT_LE(rotationRmse(r), 1.5);  // measured 1.12
+}
