@@ -8,6 +8,7 @@
 
 #include "vwe_vo/core/backend.h"
 #include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/frame_baseline.h"
 #include "vwe_vo/core/frontend.h"
 #include "vwe_vo/core/math.h"
 
@@ -23,6 +24,9 @@ void loadOptions(const YAML::Node& node, const std::string& section, FrontendOpt
                  std::vector<std::string>* warnings);
 void loadOptions(const YAML::Node& node, const std::string& section, BackendOptions* options,
                  std::vector<std::string>* warnings);
+/// nominal_speed_mps is not read: the baseline uses frontend.nominal_speed_mps.
+void loadOptions(const YAML::Node& node, const std::string& section, FrameBaselineOptions* options,
+                 std::vector<std::string>* warnings);
 
 /// Everything a pipeline run needs from one configuration file.
 struct PipelineConfig {
@@ -31,6 +35,7 @@ struct PipelineConfig {
   Pose3 T_base_cam = Pose3::Identity();
   FrontendOptions frontend;
   BackendOptions backend;
+  FrameBaselineOptions baseline;   // the frame-based baseline (vwe_vo_offline --baseline, frame_baseline_node)
   bool frontend_only = false;      // skip the back-end (set by the caller, not the file)
   std::vector<std::string> warnings;  // unknown keys and the like
 };
