@@ -167,14 +167,16 @@ int main(int argc, char** argv) {
     if (baseline) pipeline.enableBaseline();
     size_t frames = 0;
     if (args.count("--ecd") && baseline) frames = feedEcdFrames(args["--ecd"], &pipeline);
-    if (args.count("--ecd") && !baseline_only) {
-      // Streamed in chunks: memory does not grow with the length of the recording.
-      const double total = groundTruthDuration(args["--ecd"]);
-      vwe_vo::EcdEventReader reader(ecd_events, cfg.camera.width, cfg.camera.height);
-      vwe_vo::EventVector chunk;
-      while (reader.read(50000, &chunk) > 0) {
-        pipeline.addEvents(chunk);
-        progress.update(pipeline, total);
+    if (args.count("--ecd")) {
+      if (!baseline_only) {
+        // Streamed in chunks: memory does not grow with the length of the recording.
+        const double total = groundTruthDuration(args["--ecd"]);
+        vwe_vo::EcdEventReader reader(ecd_events, cfg.camera.width, cfg.camera.height);
+        vwe_vo::EventVector chunk;
+        while (reader.read(50000, &chunk) > 0) {
+          pipeline.addEvents(chunk);
+          progress.update(pipeline, total);
+        }
       }
     } else {
       const std::string events_topic = args.count("--events-topic") ? args["--events-topic"] : "/dvs/events";
