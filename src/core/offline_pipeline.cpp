@@ -65,10 +65,17 @@ void OfflinePipeline::addEvents(const EventVector& events) {
 
 void OfflinePipeline::addOdometry(int64_t t_ns, double v, double w) {
   frontend_.addOdometry(t_ns, v, w);
+  if (baseline_) baseline_->addOdometry(t_ns, v, w);
 }
-void OfflinePipeline::addGyro(int64_t t_ns, double w) {
-  frontend_.addGyro(t_ns, w);
+
+void OfflinePipeline::enableBaseline() {
+  if (!baseline_) baseline_ = std::make_unique<FrameBaseline>(config_.baseline, camera_, config_.T_base_cam);
 }
+
+void OfflinePipeline::addFrame(int64_t t_ns, const cv::Mat& image) {
+  if (baseline_) baseline_->addFrame(t_ns, image);
+}
+void OfflinePipeline::addGyro(int64_t t_ns, double w) { frontend_.addGyro(t_ns, w); }
 
 void OfflinePipeline::finish() {
   const auto t0 = Clock::now();
@@ -232,6 +239,25 @@ nlohmann::json OfflinePipeline::report() const {
         {"map_points", map_->size()},
         {"map_points_dropped", map_->dropped()}};
   }
+  if (baseline_) {
+    const FrameBaselineStats& b = baseline_->stats();
+    const auto& est = baseline_->estimates();
+    // Tracked fraction: time between frames covered by an OK or STANDSTILL estimate.
+    double covered = 0, span = 0;
+    for (const FrameEstimate& e : est) {
+      if (e.t_prev_ns < 0 || e.status == FrameStatus::kFirst) continue;
+      if (e.status == FrameStatus::kOk || e.status == FrameStatus::kStandstill) covered += dtSec(e.t_ns, e.t_prev_ns);
+    }
+    if (est.size() > 1) span = dtSec(est.back().t_ns, est.front().t_ns);
+    const double frames_span = span > 0 ? span : duration;
+    j["stages"]["baseline"] = {{"processing_s", b.processing_s},
+                               {"real_time_factor", frames_span > 0 ? b.processing_s / frames_span : 0.0},
+                               {"frames", b.frames},
+                               {"frames_ok", b.ok},
+                               {"frames_standstill", b.standstill},
+                               {"frames_lost", b.lost},
+                               {"tracked_fraction", span > 0 ? covered / span : 0.0}};
+  }
   j["dropped"] = {{"events_outside_sensor", st.events_outside},
                   {"events_out_of_order", st.events_out_of_order},
                   {"resets", st.resets}};
@@ -248,6 +274,7 @@ void OfflinePipeline::writeOutputs(const std::string& out_dir, const nlohmann::j
     writeSplineJson(out_dir + "/spline.json", backend_->spline());
   }
   if (map_) writePly(out_dir + "/map.ply", toPlyCloud(map_->points()));
+  if (baseline_) writeTum(out_dir + "/baseline.tum", baseline_->trajectory());
   nlohmann::json j = report();
   for (auto it = extra.begin(); it != extra.end(); ++it) j[it.key()] = it.value();
   std::ofstream(out_dir + "/report.json") << j.dump(2) << "\n";

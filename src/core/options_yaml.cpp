@@ -164,6 +164,32 @@ void loadOptions(const YAML::Node& node, const std::string& section, EmvsOptions
   o->validate();
 }
 
+void loadOptions(const YAML::Node& node, const std::string& section, FrameBaselineOptions* o,
+                 std::vector<std::string>* warnings) {
+  Section s(node, section);
+  s.get("max_features", &o->max_features);
+  s.get("quality_level", &o->quality_level);
+  s.get("min_distance_px", &o->min_distance_px);
+  s.get("klt_window_px", &o->klt_window_px);
+  s.get("klt_levels", &o->klt_levels);
+  s.get("max_fb_error_px", &o->max_fb_error_px);
+  s.get("border_px", &o->border_px);
+  s.get("min_tracks", &o->min_tracks);
+  s.get("min_inliers", &o->min_inliers);
+  s.get("min_inlier_fraction", &o->min_inlier_fraction);
+  s.get("inlier_threshold_px", &o->inlier_threshold_px);
+  s.get("max_hypotheses", &o->max_hypotheses);
+  s.get("omega_max_rad_s", &o->omega_max_rad_s);
+  s.get("standstill_speed_mps", &o->standstill_speed_mps);
+  s.get("odom_max_age_s", &o->odom_max_age_s);
+  s.get("min_contrast_dn", &o->min_contrast_dn);
+  s.get("max_saturated_fraction", &o->max_saturated_fraction);
+  s.get("min_median_flow_px", &o->min_median_flow_px);
+  s.get("max_frame_gap_s", &o->max_frame_gap_s);
+  s.reportUnknown(warnings);
+  o->validate();
+}
+
 std::string defaultConfigDir() {
   if (const char* env = std::getenv("VWE_VO_CONFIG_DIR")) return env;
   return VWE_VO_CONFIG_DIR;
@@ -183,8 +209,8 @@ PipelineConfig loadPipelineConfig(const std::string& path,
     } catch (const YAML::Exception& e) {
       throw std::runtime_error(path + ": cannot read configuration: " + e.what());
     }
-    static const std::set<std::string> known = {
-        "camera_calibration", "T_base_cam", "frontend", "backend", "mapping", "simulator"};
+    static const std::set<std::string> known = {"camera_calibration", "T_base_cam", "frontend", "backend",
+                                                "baseline", "mapping", "simulator"};
     for (const auto& kv : root)
       if (!known.count(kv.first.as<std::string>()))
         cfg.warnings.push_back(path + ": unknown top-level key '" + kv.first.as<std::string>() +
@@ -202,10 +228,13 @@ PipelineConfig loadPipelineConfig(const std::string& path,
       loadOptions(root, "frontend", &cfg.frontend, &cfg.warnings);
       loadOptions(root, "backend", &cfg.backend, &cfg.warnings);
       loadOptions(root, "mapping", &cfg.mapping, &cfg.global_map, &cfg.warnings);
+      loadOptions(root, "baseline", &cfg.baseline, &cfg.warnings);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument(path + ": " + e.what());
     }
   }
+  // The baseline drives at the front-end's speed so that both share one scale source.
+  cfg.baseline.nominal_speed_mps = cfg.frontend.nominal_speed_mps;
   cfg.camera = loadCameraCalibrationYaml(calib);
   return cfg;
 }

@@ -1,5 +1,6 @@
 #include "vwe_vo/ros/conversions.h"
 
+#include <cstring>
 #include <stdexcept>
 
 namespace vwe_vo {
@@ -169,6 +170,31 @@ ArcEstimate arcFromMsg(const AckermannArc& m) {
   a.num_events = m.num_events;
   a.status = m.status <= 3 ? ArcStatus(m.status) : ArcStatus::kLost;
   return a;
+}
+
+cv::Mat imageFromMsg(const sensor_msgs::Image& msg) {
+  if (msg.encoding != "mono8" && msg.encoding != "8UC1")
+    throw std::invalid_argument("image encoding '" + msg.encoding + "' is not mono8");
+  if (msg.step < msg.width || msg.data.size() < static_cast<size_t>(msg.step) * msg.height)
+    throw std::invalid_argument("image " + std::to_string(msg.width) + "x" + std::to_string(msg.height) + " with step " +
+                                std::to_string(msg.step) + " has only " + std::to_string(msg.data.size()) + " bytes");
+  const cv::Mat view(msg.height, msg.width, CV_8UC1, const_cast<uint8_t*>(msg.data.data()), msg.step);
+  return view.clone();
+}
+
+sensor_msgs::Image imageToMsg(const cv::Mat& image, int64_t t_ns, const std::string& frame_id) {
+  if (image.type() != CV_8UC1 && image.type() != CV_8UC3)
+    throw std::invalid_argument("imageToMsg: only 8-bit mono or BGR images (type " + std::to_string(image.type()) + ")");
+  sensor_msgs::Image m;
+  m.header.stamp = toRosTime(t_ns);
+  m.header.frame_id = frame_id;
+  m.height = image.rows;
+  m.width = image.cols;
+  m.encoding = image.channels() == 1 ? "mono8" : "bgr8";
+  m.step = image.cols * image.channels();
+  m.data.resize(static_cast<size_t>(m.step) * image.rows);
+  for (int y = 0; y < image.rows; ++y) std::memcpy(&m.data[y * m.step], image.ptr(y), m.step);
+  return m;
 }
 
 }  // namespace vwe_vo

@@ -13,6 +13,15 @@
 #include <map>
 #include <string>
 
+#include <nav_msgs/Odometry.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+
+#include <fstream>
+#include <sstream>
+
+#include <opencv2/imgcodecs.hpp>
+
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/core/config.h"
 #include "vwe_vo/core/offline_pipeline.h"
@@ -21,19 +30,19 @@
 namespace {
 
 const char* kUsage =
-    "usage: vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out "
-    "OUTDIR\n"
-    "                      [--use-odom] [--frontend-only] [--events-topic T] [--odom-topic T] "
-    "[--imu-topic T]\n"
-    "                      [--no-map] [--depth-png] [--quiet]\n"
+    "usage: vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out OUTDIR\n"
+    "                      [--use-odom] [--frontend-only] [--events-topic T] [--odom-topic T] [--imu-topic T]\n"
+    "                      [--no-map] [--depth-png] [--baseline] [--baseline-only] [--image-topic T] [--quiet]\n"
     "  Runs the front-end and the back-end over recorded events at full speed. Writes\n"
     "  OUTDIR/frontend.tum, OUTDIR/arcs.csv, OUTDIR/report.json and (unless --frontend-only)\n"
     "  OUTDIR/backend.tum and OUTDIR/spline.json. Then (unless --no-map) a second pass over the\n"
-    "  events maps them (EMVS) on the back-end's trajectory (the front-end's with "
-    "--frontend-only)\n"
+    "  events maps them (EMVS) on the back-end's trajectory (the front-end's with --frontend-only)\n"
     "  into OUTDIR/map.ply (binary PLY, odom frame); --depth-png adds OUTDIR/depth/depth_NNNN.png\n"
-    "  per keyframe. An ECD folder holds events.txt or events.txt.gz,\n"
-    "  calib.txt and optionally extrinsics.txt (T_base_cam, overrides the config).\n";
+    "  per keyframe. An ECD folder holds events.txt or events.txt.gz, calib.txt and optionally\n"
+    "  extrinsics.txt (T_base_cam, overrides the config).\n"
+    "  --baseline: also runs the frame-based baseline (KLT + 1-point Ackermann RANSAC) on the APS\n"
+    "  frames (ECD: images.txt + images/, bag: /dvs/image_raw) and writes OUTDIR/baseline.tum and a\n"
+    "  \"baseline\" stage in report.json; --baseline-only skips the event pipeline.\n";
 
 bool fileExists(const std::string& p) {
   struct stat st;
@@ -49,6 +58,35 @@ double groundTruthDuration(const std::string& dir) {
   } catch (const std::exception&) {
     return 0.0;
   }
+}
+
+/// Feeds the ECD folder's images.txt (`t images/frame_00000000.png`, # comments) to the pipeline.
+size_t feedEcdFrames(const std::string& dir, vwe_vo::OfflinePipeline* pipeline) {
+  const std::string list = dir + "/images.txt";
+  std::ifstream in(list);
+  if (!in) throw std::runtime_error("--baseline: cannot open " + list + " (simulate with vwe_vo_sim --images)");
+  std::string line;
+  size_t n = 0, line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream ss(line);
+    double t = 0;
+    std::string name;
+    if (!(ss >> t >> name)) throw std::runtime_error(list + ":" + std::to_string(line_no) + ": expected `t file`");
+    const cv::Mat img = cv::imread(dir + "/" + name, cv::IMREAD_UNCHANGED);
+    if (img.empty()) throw std::runtime_error(list + ":" + std::to_string(line_no) + ": cannot read " + dir + "/" + name);
+    if (img.type() != CV_8UC1)
+      throw std::runtime_error(list + ":" + std::to_string(line_no) + ": " + name + " is not an 8-bit mono image");
+    try {
+      pipeline->addFrame(vwe_vo::secToNs(t), img);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(list + ":" + std::to_string(line_no) + ": " + e.what());
+    }
+    ++n;
+  }
+  if (n == 0) throw std::runtime_error("--baseline: " + list + " lists no frames");
+  return n;
 }
 
 class Progress {
@@ -77,6 +115,7 @@ class Progress {
 int main(int argc, char** argv) {
   std::map<std::string, std::string> args;
   bool use_odom = false, quiet = false, frontend_only = false, map = true, depth_png = false;
+  bool baseline = false, baseline_only = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
@@ -90,11 +129,14 @@ int main(int argc, char** argv) {
       map = false;
     } else if (a == "--depth-png") {
       depth_png = true;
+    } else if (a == "--baseline") {
+      baseline = true;
+    } else if (a == "--baseline-only") {
+      baseline = baseline_only = true;
     } else if (a == "--quiet") {
       quiet = true;
-    } else if ((a == "--bag" || a == "--ecd" || a == "--config" || a == "--nominal-speed" ||
-                a == "--out" || a == "--events-topic" || a == "--odom-topic" ||
-                a == "--imu-topic") &&
+    } else if ((a == "--bag" || a == "--ecd" || a == "--config" || a == "--nominal-speed" || a == "--out" ||
+                a == "--events-topic" || a == "--odom-topic" || a == "--imu-topic" || a == "--image-topic") &&
                i + 1 < argc) {
       args[a] = argv[++i];
     } else {
@@ -114,6 +156,7 @@ int main(int argc, char** argv) {
     if (args.count("--nominal-speed")) {
       cfg.frontend.nominal_speed_mps = std::stod(args["--nominal-speed"]);
       cfg.frontend.validate();
+      cfg.baseline.nominal_speed_mps = cfg.frontend.nominal_speed_mps;
     }
     const auto wall0 = std::chrono::steady_clock::now();
     Progress progress(quiet);
@@ -133,28 +176,42 @@ int main(int argc, char** argv) {
       input = {{"ecd", dir}};
     }
     vwe_vo::OfflinePipeline pipeline(cfg);
+    if (baseline) pipeline.enableBaseline();
+    size_t frames = 0;
+    if (args.count("--ecd") && baseline) frames = feedEcdFrames(args["--ecd"], &pipeline);
     if (args.count("--ecd")) {
-      // Streamed in chunks: memory does not grow with the length of the recording.
-      const double total = groundTruthDuration(args["--ecd"]);
-      vwe_vo::EcdEventReader reader(ecd_events, cfg.camera.width, cfg.camera.height);
-      vwe_vo::EventVector chunk;
-      while (reader.read(50000, &chunk) > 0) {
-        pipeline.addEvents(chunk);
-        progress.update(pipeline, total);
+      if (!baseline_only) {
+        // Streamed in chunks: memory does not grow with the length of the recording.
+        const double total = groundTruthDuration(args["--ecd"]);
+        vwe_vo::EcdEventReader reader(ecd_events, cfg.camera.width, cfg.camera.height);
+        vwe_vo::EventVector chunk;
+        while (reader.read(50000, &chunk) > 0) {
+          pipeline.addEvents(chunk);
+          progress.update(pipeline, total);
+        }
       }
     } else {
       const std::string events_topic =
           args.count("--events-topic") ? args["--events-topic"] : "/dvs/events";
       const std::string odom_topic = args.count("--odom-topic") ? args["--odom-topic"] : "/odom";
       const std::string imu_topic = args.count("--imu-topic") ? args["--imu-topic"] : "/dvs/imu";
+      const std::string image_topic = args.count("--image-topic") ? args["--image-topic"] : "/dvs/image_raw";
       rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
-      rosbag::View view(bag, rosbag::TopicQuery({events_topic, odom_topic, imu_topic}));
+      std::vector<std::string> topics = {odom_topic, imu_topic};
+      if (!baseline_only) topics.push_back(events_topic);
+      if (baseline) topics.push_back(image_topic);
+      rosbag::View view(bag, rosbag::TopicQuery(topics));
       const double total = (view.getEndTime() - view.getBeginTime()).toSec();
       size_t packets = 0;
       vwe_vo::EventVector events;
       vwe_vo::EventConversionStats conv;
       for (const rosbag::MessageInstance& m : view) {
-        if (m.getTopic() == events_topic) {
+        if (baseline && m.getTopic() == image_topic) {
+          if (const auto img = m.instantiate<sensor_msgs::Image>()) {
+            pipeline.addFrame(vwe_vo::toNs(img->header.stamp), vwe_vo::imageFromMsg(*img));
+            ++frames;
+          }
+        } else if (!baseline_only && m.getTopic() == events_topic) {
           const auto msg = m.instantiate<vwe_vo::EventArray>();
           if (!msg) continue;
           if (int(msg->width) != cfg.camera.width || int(msg->height) != cfg.camera.height)
@@ -178,10 +235,10 @@ int main(int argc, char** argv) {
           }
         }
       }
-      input = {{"bag", args["--bag"]},
-               {"event_packets", packets},
-               {"events_dropped_in_conversion", conv.dropped}};
+      input = {{"bag", args["--bag"]}, {"event_packets", packets}, {"events_dropped_in_conversion", conv.dropped}};
+      if (baseline && frames == 0) throw std::runtime_error("--baseline: no " + image_topic + " frames in " + args["--bag"]);
     }
+    if (baseline) input["frames"] = frames;
     pipeline.finish();
     progress.done();
     if (map) {
@@ -221,6 +278,12 @@ int main(int argc, char** argv) {
                    "[vwe_vo_offline] map: %zu points from %zu keyframes in %.2f s -> %s/map.ply\n",
                    pipeline.map()->size(), r["stages"]["mapping"]["keyframes"].get<size_t>(),
                    r["stages"]["mapping"]["processing_s"].get<double>(), args["--out"].c_str());
+    if (baseline) {
+      const auto& b = r["stages"]["baseline"];
+      std::fprintf(stderr, "[vwe_vo_offline] baseline: %zu frames, %zu ok, %zu lost, tracked %.2f, %.2f s -> baseline.tum\n",
+                   b["frames"].get<size_t>(), b["frames_ok"].get<size_t>(), b["frames_lost"].get<size_t>(),
+                   b["tracked_fraction"].get<double>(), b["processing_s"].get<double>());
+    }
   } catch (const std::exception& e) {
     std::cerr << "\nvwe_vo_offline: error: " << e.what() << "\n";
     return 1;

@@ -26,6 +26,7 @@
 #include "vwe_vo/core/ackermann_arc.h"
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/config.h"
+#include "vwe_vo/core/sim/frame_simulator.h"
 #include "vwe_vo/core/sim/sequences.h"
 #include "vwe_vo/core/trajectory_io.h"
 #include "vwe_vo/ros/conversions.h"
@@ -55,6 +56,8 @@ void usage(std::ostream& os) {
         "                  [--config YAML] [--calib YAML] [--depth-times t1,t2,...] [--images] [--packet-ms MS]\n"
         "ecd: DIR/events.txt calib.txt groundtruth.txt extrinsics.txt; bag: DIR/NAME.bag\n"
         "(/dvs/events /dvs/camera_info /gt/pose /odom /dvs/imu [/dvs/image_raw]); always DIR/groundtruth.txt.\n"
+        "--images: 25 Hz mono8 APS frames with motion blur, noise and auto-exposure: /dvs/image_raw in the\n"
+        "bag, DIR/images/frame_NNNNNNNN.png listed in DIR/images.txt (`t images/frame_00000000.png`).\n"
         "--depth-times: DIR/depth/depth_<t>.png, 16-bit depth z in the camera frame in millimetres\n"
         "(0 = nothing hit), listed in DIR/depth/depth_times.txt.\n";
 }
@@ -231,7 +234,21 @@ int run(const Args& args) {
   uint64_t n_events = 0;
   const auto wall0 = std::chrono::steady_clock::now();
   auto last_report = wall0;
-  int64_t next_gt = 0, next_imu = 0, next_info = 0, next_image = 0, next_odom_step = 0;
+  int64_t next_gt = 0, next_imu = 0, next_info = 0, next_odom_step = 0;
+  std::unique_ptr<sim::FrameSimulator> frames;
+  std::ofstream images_txt;
+  int n_frames = 0;
+  if (args.images) {
+    sim::FrameSimulatorOptions fo;
+    fo.seed = spec.seed;
+    frames = std::make_unique<sim::FrameSimulator>(&simulator, fo);
+    if (want_ecd) {
+      makeDirs(args.out + "/images");
+      images_txt.open(args.out + "/images.txt");
+      if (!images_txt) throw std::runtime_error("cannot write " + args.out + "/images.txt");
+      images_txt << "# timestamp [s] filename (mono8 APS frames, 25 Hz, stamp = middle of the exposure)\n";
+    }
+  }
   for (int64_t t0 = 0; t0 < duration_ns; t0 += chunk_ns) {
     const int64_t t1 = std::min(duration_ns, t0 + chunk_ns);
     chunk.clear();
@@ -315,26 +332,28 @@ int run(const Args& args) {
           odom_n = 0;
         }
       }
-      if (args.images) {
-        for (; next_image <= t1 && next_image <= duration_ns; next_image += 40000000) {
-          // APS frame: 3 renders over a 5 ms exposure ending at the stamp, gamma, read noise.
-          cv::Mat1f acc = cv::Mat1f::zeros(calib.height, calib.width);
-          for (int k = 0; k < 3; ++k) acc += simulator.intensityImage(std::max<int64_t>(0, next_image - k * 2500000)) / 3.0;
+    }
+    if (frames) {
+      // APS frames (sim_frames.cpp): exposure blur, shot/read/fixed-pattern noise, auto-exposure.
+      for (const sim::SimulatedFrame& f : frames->simulateUntil(t1)) {
+        if (want_bag) {
           sensor_msgs::Image m;
-          m.header.stamp = stamp(next_image);
+          m.header.stamp = stamp(f.t_ns);
           m.header.frame_id = "davis";
           m.height = calib.height;
           m.width = calib.width;
           m.encoding = "mono8";
           m.step = calib.width;
-          m.data.resize(static_cast<size_t>(calib.width) * calib.height);
-          for (int y = 0; y < calib.height; ++y)
-            for (int x = 0; x < calib.width; ++x) {
-              const double g = 255.0 * std::pow(std::max(0.0f, acc(y, x)), 1.0 / 2.2) + 2.0 * n01(rng);
-              m.data[y * calib.width + x] = static_cast<uint8_t>(std::clamp(g, 0.0, 255.0));
-            }
+          m.data.assign(f.image.datastart, f.image.dataend);
           bag.write("/dvs/image_raw", m.header.stamp, m);
         }
+        if (want_ecd) {
+          char name[64];
+          std::snprintf(name, sizeof(name), "images/frame_%08d.png", n_frames);
+          if (!cv::imwrite(args.out + "/" + name, f.image)) throw std::runtime_error(std::string("cannot write ") + name);
+          images_txt << fmt("%.9f", nsToSec(f.t_ns)) << " " << name << "\n";
+        }
+        ++n_frames;
       }
     }
     const auto now = std::chrono::steady_clock::now();

@@ -10,6 +10,7 @@
 
 #include "vwe_vo/core/backend.h"
 #include "vwe_vo/core/emvs.h"
+#include "vwe_vo/core/frame_baseline.h"
 #include "vwe_vo/core/frontend.h"
 #include "vwe_vo/core/options_yaml.h"
 #include "vwe_vo/core/trajectory_io.h"
@@ -26,6 +27,14 @@ class OfflinePipeline {
   void addGyro(int64_t t_ns, double yaw_rate_rad_s);
   /// Processes what is left. Call once at the end.
   void finish();
+
+  /// Runs the frame-based baseline (config.baseline) on frames given to addFrame().
+  void enableBaseline();
+  /// A mono8 APS frame for the baseline (ignored unless enableBaseline() was called); throws
+  /// std::invalid_argument for a frame of another size or type than the calibration.
+  void addFrame(int64_t t_ns, const cv::Mat& image);
+  /// Null unless enableBaseline() was called.
+  const FrameBaseline* baseline() const { return baseline_.get(); }
 
   const std::vector<ArcEstimate>& arcs() const { return arcs_; }
   /// Front-end dead reckoning (integrateArcs) of base_link in odom, every 10 ms.
@@ -46,7 +55,8 @@ class OfflinePipeline {
   const GlobalMap* map() const { return map_.get(); }
 
   /// Writes frontend.tum, arcs.csv, report.json and, with the back-end, backend.tum and
-  /// spline.json, with mapping map.ply (binary), into out_dir (created if missing).
+  /// spline.json, with mapping map.ply (binary), with the baseline baseline.tum, into out_dir
+  /// (created if missing).
   void writeOutputs(const std::string& out_dir, const nlohmann::json& extra = {}) const;
   nlohmann::json report() const;
 
@@ -61,6 +71,7 @@ class OfflinePipeline {
   CameraModel camera_;
   Frontend frontend_;
   std::unique_ptr<Backend> backend_;
+  std::unique_ptr<FrameBaseline> baseline_;
   std::vector<ArcEstimate> arcs_;
   size_t events_ = 0;
   int64_t t_first_ = -1, t_last_ = -1;

@@ -9,6 +9,7 @@
 #include "vwe_vo/core/backend.h"
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/emvs.h"
+#include "vwe_vo/core/frame_baseline.h"
 #include "vwe_vo/core/frontend.h"
 #include "vwe_vo/core/math.h"
 
@@ -29,6 +30,9 @@ void loadOptions(const YAML::Node& node, const std::string& section, GlobalMapOp
 /// The mapping: section (EmvsOptions with nested volume: and global_map:).
 void loadOptions(const YAML::Node& node, const std::string& section, EmvsOptions* options,
                  GlobalMapOptions* global_map, std::vector<std::string>* warnings);
+/// nominal_speed_mps is not read: the baseline uses frontend.nominal_speed_mps.
+void loadOptions(const YAML::Node& node, const std::string& section, FrameBaselineOptions* options,
+                 std::vector<std::string>* warnings);
 
 /// Everything a pipeline run needs from one configuration file.
 struct PipelineConfig {
@@ -39,6 +43,7 @@ struct PipelineConfig {
   BackendOptions backend;
   EmvsOptions mapping;
   GlobalMapOptions global_map;
+  FrameBaselineOptions baseline;      // the frame-based baseline (vwe_vo_offline --baseline, frame_baseline_node)
   bool frontend_only = false;         // skip the back-end (set by the caller, not the file)
   std::vector<std::string> warnings;  // unknown keys and the like
 };

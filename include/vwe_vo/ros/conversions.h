@@ -8,6 +8,9 @@
 #include <nav_msgs/Odometry.h>
 #include <ros/time.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+
+#include <opencv2/core.hpp>
 
 #include "vwe_vo/AckermannArc.h"
 #include "vwe_vo/EventArray.h"
@@ -49,6 +52,12 @@ geometry_msgs::Transform transformToMsg(const Pose3& T);
 geometry_msgs::Point pointToMsg(const Vec3& p);
 geometry_msgs::Vector3 vectorToMsg(const Vec3& v);
 geometry_msgs::Quaternion quaternionToMsg(const Quat& q);
+
+/// A mono8 (or 8UC1) image as a cv::Mat (deep copy). Throws std::invalid_argument naming the
+/// encoding or the inconsistent sizes.
+cv::Mat imageFromMsg(const sensor_msgs::Image& msg);
+/// A BGR or mono cv::Mat as bgr8 / mono8.
+sensor_msgs::Image imageToMsg(const cv::Mat& image, int64_t t_ns, const std::string& frame_id);
 
 AckermannArc arcToMsg(const ArcEstimate& arc, const std::string& frame_id);
 ArcEstimate arcFromMsg(const AckermannArc& msg);

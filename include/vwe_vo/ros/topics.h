@@ -13,6 +13,9 @@ constexpr const char* kArcs = "/vwe/arcs";               // vwe_vo/AckermannArc 
 constexpr const char* kFrontendOdom = "/vwe/frontend/odom";  // nav_msgs/Odometry, dead-reckoned
 constexpr const char* kFrontendIwe = "/vwe/frontend/iwe";    // sensor_msgs/Image, sharpened events
 constexpr const char* kTrajectory = "/vwe/trajectory";       // vwe_vo/SplineTrajectory (back-end)
+constexpr const char* kImageRaw = "/dvs/image_raw";          // sensor_msgs/Image, APS frames (mono8)
+constexpr const char* kBaselineOdom = "/vwe/baseline/odom";  // nav_msgs/Odometry, frame baseline
+constexpr const char* kBaselineTracks = "/vwe/baseline/tracks";  // sensor_msgs/Image, KLT tracks
 
 }  // namespace topics
 

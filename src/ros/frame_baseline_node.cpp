@@ -1,0 +1,183 @@
+#include "vwe_vo/ros/frame_baseline_node.h"
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "vwe_vo/core/options_yaml.h"
+#include "vwe_vo/ros/conversions.h"
+#include "vwe_vo/ros/topics.h"
+
+namespace vwe_vo {
+
+void FrameBaselineNodeOptions::validate() const {
+  auto fail = [](const std::string& m) { throw std::invalid_argument("frame_baseline_node: " + m); };
+  if (max_queue_frames < 1) fail("~max_queue_frames must be at least 1");
+  if (!std::isfinite(nominal_speed_mps)) fail("~nominal_speed must be finite [m/s]");
+}
+
+FrameBaselineNode::FrameBaselineNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh) : nh_(nh), pnh_(pnh) {
+  readParameters();
+  image_sub_ = nh_.subscribe(topics::kImageRaw, 5, &FrameBaselineNode::imageCallback, this);
+  camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &FrameBaselineNode::cameraInfoCallback, this);
+  if (node_options_.use_odom) odom_sub_ = nh_.subscribe(topics::kOdom, 200, &FrameBaselineNode::odomCallback, this);
+  odom_pub_ = nh_.advertise<nav_msgs::Odometry>(topics::kBaselineOdom, 100);
+  tracks_pub_ = nh_.advertise<sensor_msgs::Image>(topics::kBaselineTracks, 2);
+  if (!have_calibration_)
+    ROS_INFO("frame_baseline_node: waiting for %s (no ~calibration given)", camera_info_sub_.getTopic().c_str());
+  worker_ = std::thread(&FrameBaselineNode::workerLoop, this);
+}
+
+FrameBaselineNode::~FrameBaselineNode() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+void FrameBaselineNode::readParameters() {
+  FrameBaselineNodeOptions& o = node_options_;
+  pnh_.param<std::string>("config", o.config_path, defaultConfigDir() + "/vwe_vo.yaml");
+  pnh_.param<std::string>("calibration", o.calibration_path, "");
+  pnh_.param("nominal_speed", o.nominal_speed_mps, -1.0);
+  pnh_.param("use_odom", o.use_odom, false);
+  pnh_.param("max_queue_frames", o.max_queue_frames, 10);
+  o.validate();
+  const PipelineConfig config = loadPipelineConfig(o.config_path);
+  for (const std::string& w : config.warnings) ROS_WARN("frame_baseline_node: %s", w.c_str());
+  baseline_options_ = config.baseline;
+  if (o.nominal_speed_mps >= 0) baseline_options_.nominal_speed_mps = o.nominal_speed_mps;
+  baseline_options_.validate();
+  T_base_cam_ = config.T_base_cam;
+  if (!o.calibration_path.empty()) {
+    calibration_ = loadCameraCalibrationYaml(o.calibration_path);
+    have_calibration_ = true;
+  }
+  const FrameBaselineOptions& b = baseline_options_;
+  ROS_INFO(
+      "frame_baseline_node: config %s, calibration %s, nominal_speed %.3f m/s, use_odom %d, %d features, KLT %d px "
+      "x %d levels, inliers within %.2f px, LOST below %d tracks",
+      o.config_path.c_str(), o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(),
+      b.nominal_speed_mps, o.use_odom, b.max_features, b.klt_window_px, b.klt_levels, b.inlier_threshold_px,
+      b.min_tracks);
+}
+
+void FrameBaselineNode::imageCallback(const sensor_msgs::Image::ConstPtr& msg) {
+  ++frames_in_;
+  Input input;
+  input.t_ns = toNs(msg->header.stamp);
+  try {
+    input.image = imageFromMsg(*msg);
+  } catch (const std::invalid_argument& e) {
+    ++frames_refused_;
+    ROS_ERROR_THROTTLE(5, "frame_baseline_node: frame refused: %s (%zu so far)", e.what(), frames_refused_.load());
+    return;
+  }
+  enqueue(std::move(input));
+}
+
+void FrameBaselineNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (have_calibration_) return;
+  try {
+    calibration_ = calibrationFromMsg(*msg);
+  } catch (const std::invalid_argument& e) {
+    ROS_WARN_THROTTLE(5, "frame_baseline_node: camera_info refused: %s", e.what());
+    return;
+  }
+  have_calibration_ = true;
+  ROS_INFO("frame_baseline_node: calibration from camera_info: %dx%d, fx %.2f fy %.2f (%zu inputs before it ignored)",
+           calibration_.width, calibration_.height, calibration_.fx, calibration_.fy,
+           inputs_before_calibration_.load());
+  cv_.notify_all();
+}
+
+void FrameBaselineNode::odomCallback(const nav_msgs::Odometry::ConstPtr& msg) {
+  Input input;
+  input.kind = Input::Kind::kOdometry;
+  input.t_ns = toNs(msg->header.stamp);
+  input.v = msg->twist.twist.linear.x;
+  input.yaw_rate = msg->twist.twist.angular.z;
+  enqueue(std::move(input));
+}
+
+void FrameBaselineNode::enqueue(Input&& input) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!have_calibration_) {
+    ++inputs_before_calibration_;
+    return;
+  }
+  // Frames are a live stream: when the worker falls behind, the oldest queued input goes.
+  if (queue_.size() >= static_cast<size_t>(node_options_.max_queue_frames)) {
+    queue_.pop_front();
+    ++frames_dropped_;
+    ROS_WARN_THROTTLE(5, "frame_baseline_node: queue full, oldest input dropped (%zu so far)", frames_dropped_.load());
+  }
+  queue_.push_back(std::move(input));
+  cv_.notify_one();
+}
+
+void FrameBaselineNode::workerLoop() {
+  CameraCalibration calibration;
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    cv_.wait(lock, [this] { return stop_ || have_calibration_; });
+    if (stop_) return;
+    calibration = calibration_;
+  }
+  try {
+    camera_ = std::make_unique<CameraModel>(calibration);
+    baseline_ = std::make_unique<FrameBaseline>(baseline_options_, *camera_, T_base_cam_);
+  } catch (const std::exception& e) {
+    ROS_ERROR("frame_baseline_node: the baseline cannot start: %s", e.what());
+    return;
+  }
+  while (true) {
+    std::deque<Input> batch;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait_for(lock, std::chrono::milliseconds(100), [this] { return stop_ || !queue_.empty(); });
+      if (stop_) break;
+      batch.swap(queue_);
+    }
+    for (const Input& input : batch) {
+      if (input.kind == Input::Kind::kOdometry) {
+        baseline_->addOdometry(input.t_ns, input.v, input.yaw_rate);
+      } else {
+        handleFrame(input);
+      }
+    }
+  }
+}
+
+void FrameBaselineNode::handleFrame(const Input& input) {
+  FrameEstimate e;
+  try {
+    e = baseline_->addFrame(input.t_ns, input.image);
+  } catch (const std::invalid_argument& ex) {
+    ++frames_refused_;
+    ROS_ERROR_THROTTLE(5, "frame_baseline_node: frame refused: %s (%zu so far)", ex.what(), frames_refused_.load());
+    return;
+  }
+  if (e.status == FrameStatus::kLost)
+    ROS_WARN_THROTTLE(5, "frame_baseline_node: LOST at %.3f s: %s (%zu of %zu frames lost)", nsToSec(e.t_ns),
+                      e.reason.c_str(), baseline_->stats().lost, baseline_->stats().frames);
+  if (e.status == FrameStatus::kOk || e.status == FrameStatus::kStandstill || e.status == FrameStatus::kFirst) {
+    nav_msgs::Odometry odom;
+    odom.header.stamp = toRosTime(e.t_ns);
+    odom.header.frame_id = frames::kOdom;
+    odom.child_frame_id = frames::kBase;
+    odom.pose.pose = poseToMsg(baseline_->chain().T_odom_base(e.t_ns));
+    odom.twist.twist.linear.x = e.v;
+    odom.twist.twist.angular.z = e.omega;
+    odom_pub_.publish(odom);
+  }
+  if (tracks_pub_.getNumSubscribers() > 0) {
+    const cv::Mat img = baseline_->debugImage();
+    if (!img.empty()) tracks_pub_.publish(imageToMsg(img, e.t_ns, frames::kCamera));
+  }
+}
+
+}  // namespace vwe_vo
