@@ -209,6 +209,8 @@ void Backend::reset() {
   standstills_ns_.clear();
   chain_.reset();
   newest_arc_ns_ = processed_ns_ = -1;
+  first_free_ = 0;
+  T_anchor_ = Pose3::Identity();
   spline_.reset();
   ++stats_.resets;
 }
@@ -272,11 +274,52 @@ void Backend::update(int64_t t_new_ns) {
   extendSpline(t_new_ns);
   refine(t_new_ns);
   processed_ns_ = t_new_ns;
+  T_anchor_ = spline_->T_odom_base(spline_->toSplineTime(t_new_ns)) *
+              chain_->T_odom_base(t_new_ns).inverse();
   ++stats_.updates;
   // Bounded memory: events before the next window cannot be used again.
   const int64_t keep_from = t_new_ns - secToNs(options_.window_s + options_.tau2_s);
   if (!buffer_.empty() && buffer_.oldestTime() < keep_from) buffer_.dropBefore(keep_from);
 }
+
+namespace {
+// The planar rigid motion that best maps the dead reckoning onto the refined spline over
+// [t_end - span, t_end] (least squares of the positions; their spread determines the heading far
+// better than the spline's tangent at the end of its refined part). Falls back to matching the
+// poses at t_end when the vehicle barely moved over the span.
+Pose3 anchorOnSpline(const BSpline& spline, const ArcChain& chain, int64_t t_end_ns, double span_s) {
+  const Pose3 T_end = spline.T_odom_base(spline.toSplineTime(t_end_ns)) *
+                      chain.T_odom_base(t_end_ns).inverse();
+  const int64_t t_from =
+      std::max({t_end_ns - secToNs(span_s), chain.startTime(),
+                spline.epochNs() + secToNs(spline.validFrom())});
+  constexpr int kSamples = 21;
+  if (t_end_ns - t_from < secToNs(0.05)) return T_end;
+  std::vector<Vec2> q(kSamples), p(kSamples);
+  Vec2 qc = Vec2::Zero(), pc = Vec2::Zero();
+  for (int k = 0; k < kSamples; ++k) {
+    const int64_t t = t_from + (t_end_ns - t_from) * k / (kSamples - 1);
+    q[k] = chain.T_odom_base(t).translation().head<2>();
+    p[k] = spline.position(spline.toSplineTime(t));
+    qc += q[k] / kSamples;
+    pc += p[k] / kSamples;
+  }
+  double sxx = 0, sxy = 0, spread = 0;  // H = sum (q - qc)(p - pc)^T
+  for (int k = 0; k < kSamples; ++k) {
+    const Vec2 a = q[k] - qc, b = p[k] - pc;
+    sxx += a.dot(b);
+    sxy += a.x() * b.y() - a.y() * b.x();
+    spread += a.squaredNorm();
+  }
+  if (spread / kSamples < 0.02 * 0.02) return T_end;  // moved less than ~2 cm: heading unknown
+  const double theta = std::atan2(sxy, sxx);
+  const Eigen::Rotation2Dd R(theta);
+  // Position: through the pose at t_end (continuity there), rotation from the fit.
+  const Vec2 q_end = chain.T_odom_base(t_end_ns).translation().head<2>();
+  const Vec2 t = spline.position(spline.toSplineTime(t_end_ns)) - R * q_end;
+  return makePose(rotZ(theta), Vec3(t.x(), t.y(), 0.0));
+}
+}  // namespace
 
 std::vector<BSpline::Interval> Backend::standstillIntervals(int64_t epoch_ns) const {
   std::vector<BSpline::Interval> out;
@@ -308,7 +351,7 @@ void Backend::extendSpline(int64_t t_new_ns) {
     // Refit every control point whose support reaches past u_old (the unrefined part).
     while (first < n_old && knots[first + p + 1] <= u_old) ++first;
     first = std::min(first, n - 1);
-    T_anchor = spline_->T_odom_base(u_old) * chain_->T_odom_base(processed_ns_).inverse();
+    T_anchor = anchorOnSpline(*spline_, *chain_, processed_ns_, options_.window_s / 2);
   }
   auto next = std::make_shared<BSpline>(p, knots, P, epoch);
   next->setStandstills(standstillIntervals(epoch));
@@ -340,6 +383,7 @@ void Backend::refine(int64_t t_new_ns) {
   while (first_free < spline_->numControlPoints() &&
          spline_->knots()[first_free + p + 1] <= u_window)
     ++first_free;
+  first_free_ = first_free;
   if (first_free >= spline_->numControlPoints() || options_.max_iterations == 0) return;
 
   const std::vector<BSpline::Interval>& still = spline_->standstills();
@@ -401,6 +445,29 @@ void Backend::refine(int64_t t_new_ns) {
   } else {
     stats_.last_gain = f1 / f0;
   }
+}
+
+int64_t Backend::oldestArcTime() const { return chain_ ? chain_->startTime() : -1; }
+
+bool Backend::poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const {
+  if (!chain_ || t_ns < chain_->startTime() || t_ns > newest_arc_ns_) return false;
+  constexpr int64_t kRateStep_ns = 20000000;  // central differences for the rates [ns]
+  auto pose = [&](int64_t t) {
+    if (spline_ && t <= processed_ns_) return spline_->T_odom_base(spline_->toSplineTime(t));
+    return Pose3(T_anchor_ * chain_->T_odom_base(t));
+  };
+  *T_odom_base = pose(t_ns);
+  if (v || omega) {
+    const int64_t a = std::max(chain_->startTime(), t_ns - kRateStep_ns);
+    const int64_t b = std::min(newest_arc_ns_, t_ns + kRateStep_ns);
+    const double dt = dtSec(b, a);
+    const Pose3 Ta = pose(a), Tb = pose(b);
+    const Pose3 rel = Ta.inverse() * Tb;
+    if (v) *v = dt > 0 ? rel.translation().head<2>().norm() / dt : 0.0;
+    if (v && rel.translation().x() < 0) *v = -*v;
+    if (omega) *omega = dt > 0 ? std::atan2(rel.linear()(1, 0), rel.linear()(0, 0)) / dt : 0.0;
+  }
+  return true;
 }
 
 Trajectory3 Backend::sampleTrajectory(double rate_hz) const {

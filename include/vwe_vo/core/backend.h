@@ -167,6 +167,16 @@ class Backend {
   const BSpline& spline() const { return *spline_; }
   /// Newest time the spline is initialised and refined up to.
   int64_t processedUntil() const { return processed_ns_; }
+  /// Start of the first arc and end of the newest arc since the last reset (-1: none yet).
+  int64_t oldestArcTime() const;
+  int64_t newestArcTime() const { return newest_arc_ns_; }
+  /// First control point the last refinement optimised (the ones before it are fixed).
+  int firstFree() const { return first_free_; }
+  /// Pose of base_link in odom at t_ns with its speed [m/s] and yaw rate [rad/s] (may be null):
+  /// on the refined spline up to processedUntil(), beyond it (up to the newest arc) the
+  /// front-end's dead reckoning anchored on the spline at processedUntil(); before the first
+  /// refinement the dead reckoning alone. False if t_ns is outside [first arc, newest arc].
+  bool poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const;
   /// Poses of base_link in odom every 1/rate_hz from the first arc to processedUntil().
   Trajectory3 sampleTrajectory(double rate_hz) const;
   const BackendStats& stats() const { return stats_; }
@@ -190,6 +200,8 @@ class Backend {
   std::unique_ptr<ArcChain> chain_;                          // front-end dead reckoning
   int64_t newest_arc_ns_ = -1;
   int64_t processed_ns_ = -1;
+  int first_free_ = 0;
+  Pose3 T_anchor_ = Pose3::Identity();  // maps the dead reckoning onto the spline's odom
   std::shared_ptr<BSpline> spline_;
   BackendStats stats_;
 };

@@ -13,6 +13,8 @@ constexpr const char* kArcs = "/vwe/arcs";               // vwe_vo/AckermannArc 
 constexpr const char* kFrontendOdom = "/vwe/frontend/odom";  // nav_msgs/Odometry, dead-reckoned
 constexpr const char* kFrontendIwe = "/vwe/frontend/iwe";    // sensor_msgs/Image, sharpened events
 constexpr const char* kTrajectory = "/vwe/trajectory";       // vwe_vo/SplineTrajectory (back-end)
+constexpr const char* kBackendOdom = "/vwe/odom";            // nav_msgs/Odometry on the spline
+constexpr const char* kPath = "/vwe/path";                   // nav_msgs/Path, the refined spline
 
 }  // namespace topics
 
