@@ -34,6 +34,8 @@ void BackendOptions::validate() const {
     fail("smoothness_weight must be >= 0");
   if (!(speed_prior_weight >= 0 && std::isfinite(speed_prior_weight)))
     fail("speed_prior_weight must be >= 0");
+  if (!(deformation_weight >= 0 && std::isfinite(deformation_weight)))
+    fail("deformation_weight must be >= 0");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
   if (!(output_rate_hz > 0 && output_rate_hz <= 10000))
     fail("output_rate_hz must be in (0, 10000] Hz");
@@ -122,12 +124,14 @@ double SpeedPrior::evaluate(Eigen::VectorXd* gradient) const {
 }
 
 MultiVolumeCost::MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0,
-                                 double step_scale, double normaliser, const SpeedPrior* prior)
+                                 double step_scale, double normaliser, const SpeedPrior* prior,
+                                 double deformation_weight)
     : objective_(objective),
       params0_(std::move(params0)),
       step_scale_(step_scale),
       normaliser_(normaliser),
-      prior_(prior) {}
+      prior_(prior),
+      deformation_weight_(deformation_weight) {}
 
 Eigen::VectorXd MultiVolumeCost::params(const double* x) const {
   return params0_ + step_scale_ * Eigen::Map<const Eigen::VectorXd>(x, params0_.size());
@@ -147,6 +151,23 @@ bool MultiVolumeCost::Evaluate(const double* x, double* cost, double* gradient) 
     *cost +=
         prior_->evaluate(gradient ? &gp : nullptr);  // the objective has set the control points
     if (gradient) Eigen::Map<Eigen::VectorXd>(gradient, params0_.size()) += step_scale_ * gp;
+  }
+  if (deformation_weight_ > 0) {
+    // Control point k (of m free) moves by x[2k..2k+1]; three fixed (zero) moves precede them.
+    const int m = NumParameters() / 2;
+    auto move = [&](int k) { return k < 0 ? Vec2(Vec2::Zero()) : Vec2(x[2 * k], x[2 * k + 1]); };
+    for (int i = -3; i + 3 < m; ++i) {
+      const Vec2 d3 = move(i) - 3 * move(i + 1) + 3 * move(i + 2) - move(i + 3);
+      *cost += deformation_weight_ * d3.squaredNorm();
+      if (!gradient) continue;
+      const double c[4] = {1, -3, 3, -1};
+      for (int j = 0; j < 4; ++j) {
+        const int k = i + j;
+        if (k < 0) continue;
+        gradient[2 * k] += 2 * deformation_weight_ * c[j] * d3.x();
+        gradient[2 * k + 1] += 2 * deformation_weight_ * c[j] * d3.y();
+      }
+    }
   }
   return std::isfinite(*cost);
 }
@@ -358,7 +379,9 @@ void Backend::extendSpline(int64_t t_new_ns) {
 
   std::vector<double> u;
   std::vector<Vec2> pos;
-  const double u_from = std::max(0.0, knots[first]), u_to = next->validTo();
+  // The first fit also samples the dead reckoning (extrapolated) one knot span before the
+  // domain, so that the start pose is not an end effect of the least squares.
+  const double u_from = spline_ ? std::max(0.0, knots[first]) : -dk, u_to = next->validTo();
   const int samples =
       std::max(2, int(std::ceil((u_to - u_from) / options_.init_sample_interval_s)) + 1);
   for (int k = 0; k < samples; ++k) {
@@ -421,7 +444,8 @@ void Backend::refine(int64_t t_new_ns) {
   for (double u = u_window; u <= u_new; u += options_.init_sample_interval_s) u_prior.push_back(u);
   const SpeedPrior prior(spline_, first_free, u_prior, options_.speed_prior_weight);
   auto* cost = new MultiVolumeCost(&objective, params0, options_.step_scale_m, f0,
-                                   options_.speed_prior_weight > 0 ? &prior : nullptr);
+                                   options_.speed_prior_weight > 0 ? &prior : nullptr,
+                                   options_.deformation_weight);
   ceres::GradientProblem problem(cost);  // takes ownership
   ceres::GradientProblemSolver::Options so;
   so.line_search_direction_type = ceres::LBFGS;
