@@ -67,7 +67,7 @@ class BackendRecorder {
     odoms_.push_back(*m);
   }
   void onLog(const rosgraph_msgs::Log::ConstPtr& m) {
-    if (m->name != "/backend_node") return;
+    if (m->name != "/backend_node" && m->name != "/frontend_node") return;
     std::lock_guard<std::mutex> lock(mutex_);
     logs_.push_back(*m);
   }
@@ -120,6 +120,9 @@ TEST(BackendNode, PublishesTheRefinedSplineOdometryAndTf) {
                             poseFromMsg(last.pose.pose).linear());
   const double elapsed = (last.header.stamp - first.header.stamp).toSec();
   EXPECT_NEAR(dyaw * kDegPerRad, kOmega * elapsed * kDegPerRad, 5.0);
+
+  // frontend_node follows the refined spline (~follow_backend).
+  EXPECT_TRUE(recorder->logged("re-anchored on the back-end's spline", rosgraph_msgs::Log::INFO));
 
   // tf odom -> base_link at the stamps of the odometry.
   std::string error;
