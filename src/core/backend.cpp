@@ -34,6 +34,8 @@ void BackendOptions::validate() const {
     fail("smoothness_weight must be >= 0");
   if (!(speed_prior_weight >= 0 && std::isfinite(speed_prior_weight)))
     fail("speed_prior_weight must be >= 0");
+  if (!(deformation_weight >= 0 && std::isfinite(deformation_weight)))
+    fail("deformation_weight must be >= 0");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
   if (!(output_rate_hz > 0 && output_rate_hz <= 10000))
     fail("output_rate_hz must be in (0, 10000] Hz");
@@ -122,12 +124,14 @@ double SpeedPrior::evaluate(Eigen::VectorXd* gradient) const {
 }
 
 MultiVolumeCost::MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0,
-                                 double step_scale, double normaliser, const SpeedPrior* prior)
+                                 double step_scale, double normaliser, const SpeedPrior* prior,
+                                 double deformation_weight)
     : objective_(objective),
       params0_(std::move(params0)),
       step_scale_(step_scale),
       normaliser_(normaliser),
-      prior_(prior) {}
+      prior_(prior),
+      deformation_weight_(deformation_weight) {}
 
 Eigen::VectorXd MultiVolumeCost::params(const double* x) const {
   return params0_ + step_scale_ * Eigen::Map<const Eigen::VectorXd>(x, params0_.size());
@@ -147,6 +151,23 @@ bool MultiVolumeCost::Evaluate(const double* x, double* cost, double* gradient) 
     *cost +=
         prior_->evaluate(gradient ? &gp : nullptr);  // the objective has set the control points
     if (gradient) Eigen::Map<Eigen::VectorXd>(gradient, params0_.size()) += step_scale_ * gp;
+  }
+  if (deformation_weight_ > 0) {
+    // Control point k (of m free) moves by x[2k..2k+1]; three fixed (zero) moves precede them.
+    const int m = NumParameters() / 2;
+    auto move = [&](int k) { return k < 0 ? Vec2(Vec2::Zero()) : Vec2(x[2 * k], x[2 * k + 1]); };
+    for (int i = -3; i + 3 < m; ++i) {
+      const Vec2 d3 = move(i) - 3 * move(i + 1) + 3 * move(i + 2) - move(i + 3);
+      *cost += deformation_weight_ * d3.squaredNorm();
+      if (!gradient) continue;
+      const double c[4] = {1, -3, 3, -1};
+      for (int j = 0; j < 4; ++j) {
+        const int k = i + j;
+        if (k < 0) continue;
+        gradient[2 * k] += 2 * deformation_weight_ * c[j] * d3.x();
+        gradient[2 * k + 1] += 2 * deformation_weight_ * c[j] * d3.y();
+      }
+    }
   }
   return std::isfinite(*cost);
 }
@@ -209,6 +230,8 @@ void Backend::reset() {
   standstills_ns_.clear();
   chain_.reset();
   newest_arc_ns_ = processed_ns_ = -1;
+  first_free_ = 0;
+  T_anchor_ = Pose3::Identity();
   spline_.reset();
   ++stats_.resets;
 }
@@ -272,11 +295,52 @@ void Backend::update(int64_t t_new_ns) {
   extendSpline(t_new_ns);
   refine(t_new_ns);
   processed_ns_ = t_new_ns;
+  T_anchor_ = spline_->T_odom_base(spline_->toSplineTime(t_new_ns)) *
+              chain_->T_odom_base(t_new_ns).inverse();
   ++stats_.updates;
   // Bounded memory: events before the next window cannot be used again.
   const int64_t keep_from = t_new_ns - secToNs(options_.window_s + options_.tau2_s);
   if (!buffer_.empty() && buffer_.oldestTime() < keep_from) buffer_.dropBefore(keep_from);
 }
+
+namespace {
+// The planar rigid motion that best maps the dead reckoning onto the refined spline over
+// [t_end - span, t_end] (least squares of the positions; their spread determines the heading far
+// better than the spline's tangent at the end of its refined part). Falls back to matching the
+// poses at t_end when the vehicle barely moved over the span.
+Pose3 anchorOnSpline(const BSpline& spline, const ArcChain& chain, int64_t t_end_ns, double span_s) {
+  const Pose3 T_end = spline.T_odom_base(spline.toSplineTime(t_end_ns)) *
+                      chain.T_odom_base(t_end_ns).inverse();
+  const int64_t t_from =
+      std::max({t_end_ns - secToNs(span_s), chain.startTime(),
+                spline.epochNs() + secToNs(spline.validFrom())});
+  constexpr int kSamples = 21;
+  if (t_end_ns - t_from < secToNs(0.05)) return T_end;
+  std::vector<Vec2> q(kSamples), p(kSamples);
+  Vec2 qc = Vec2::Zero(), pc = Vec2::Zero();
+  for (int k = 0; k < kSamples; ++k) {
+    const int64_t t = t_from + (t_end_ns - t_from) * k / (kSamples - 1);
+    q[k] = chain.T_odom_base(t).translation().head<2>();
+    p[k] = spline.position(spline.toSplineTime(t));
+    qc += q[k] / kSamples;
+    pc += p[k] / kSamples;
+  }
+  double sxx = 0, sxy = 0, spread = 0;  // H = sum (q - qc)(p - pc)^T
+  for (int k = 0; k < kSamples; ++k) {
+    const Vec2 a = q[k] - qc, b = p[k] - pc;
+    sxx += a.dot(b);
+    sxy += a.x() * b.y() - a.y() * b.x();
+    spread += a.squaredNorm();
+  }
+  if (spread / kSamples < 0.02 * 0.02) return T_end;  // moved less than ~2 cm: heading unknown
+  const double theta = std::atan2(sxy, sxx);
+  const Eigen::Rotation2Dd R(theta);
+  // Position: through the pose at t_end (continuity there), rotation from the fit.
+  const Vec2 q_end = chain.T_odom_base(t_end_ns).translation().head<2>();
+  const Vec2 t = spline.position(spline.toSplineTime(t_end_ns)) - R * q_end;
+  return makePose(rotZ(theta), Vec3(t.x(), t.y(), 0.0));
+}
+}  // namespace
 
 std::vector<BSpline::Interval> Backend::standstillIntervals(int64_t epoch_ns) const {
   std::vector<BSpline::Interval> out;
@@ -308,14 +372,16 @@ void Backend::extendSpline(int64_t t_new_ns) {
     // Refit every control point whose support reaches past u_old (the unrefined part).
     while (first < n_old && knots[first + p + 1] <= u_old) ++first;
     first = std::min(first, n - 1);
-    T_anchor = spline_->T_odom_base(u_old) * chain_->T_odom_base(processed_ns_).inverse();
+    T_anchor = anchorOnSpline(*spline_, *chain_, processed_ns_, options_.window_s / 2);
   }
   auto next = std::make_shared<BSpline>(p, knots, P, epoch);
   next->setStandstills(standstillIntervals(epoch));
 
   std::vector<double> u;
   std::vector<Vec2> pos;
-  const double u_from = std::max(0.0, knots[first]), u_to = next->validTo();
+  // The first fit also samples the dead reckoning (extrapolated) one knot span before the
+  // domain, so that the start pose is not an end effect of the least squares.
+  const double u_from = spline_ ? std::max(0.0, knots[first]) : -dk, u_to = next->validTo();
   const int samples =
       std::max(2, int(std::ceil((u_to - u_from) / options_.init_sample_interval_s)) + 1);
   for (int k = 0; k < samples; ++k) {
@@ -340,6 +406,7 @@ void Backend::refine(int64_t t_new_ns) {
   while (first_free < spline_->numControlPoints() &&
          spline_->knots()[first_free + p + 1] <= u_window)
     ++first_free;
+  first_free_ = first_free;
   if (first_free >= spline_->numControlPoints() || options_.max_iterations == 0) return;
 
   const std::vector<BSpline::Interval>& still = spline_->standstills();
@@ -377,7 +444,8 @@ void Backend::refine(int64_t t_new_ns) {
   for (double u = u_window; u <= u_new; u += options_.init_sample_interval_s) u_prior.push_back(u);
   const SpeedPrior prior(spline_, first_free, u_prior, options_.speed_prior_weight);
   auto* cost = new MultiVolumeCost(&objective, params0, options_.step_scale_m, f0,
-                                   options_.speed_prior_weight > 0 ? &prior : nullptr);
+                                   options_.speed_prior_weight > 0 ? &prior : nullptr,
+                                   options_.deformation_weight);
   ceres::GradientProblem problem(cost);  // takes ownership
   ceres::GradientProblemSolver::Options so;
   so.line_search_direction_type = ceres::LBFGS;
@@ -401,6 +469,29 @@ void Backend::refine(int64_t t_new_ns) {
   } else {
     stats_.last_gain = f1 / f0;
   }
+}
+
+int64_t Backend::oldestArcTime() const { return chain_ ? chain_->startTime() : -1; }
+
+bool Backend::poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const {
+  if (!chain_ || t_ns < chain_->startTime() || t_ns > newest_arc_ns_) return false;
+  constexpr int64_t kRateStep_ns = 20000000;  // central differences for the rates [ns]
+  auto pose = [&](int64_t t) {
+    if (spline_ && t <= processed_ns_) return spline_->T_odom_base(spline_->toSplineTime(t));
+    return Pose3(T_anchor_ * chain_->T_odom_base(t));
+  };
+  *T_odom_base = pose(t_ns);
+  if (v || omega) {
+    const int64_t a = std::max(chain_->startTime(), t_ns - kRateStep_ns);
+    const int64_t b = std::min(newest_arc_ns_, t_ns + kRateStep_ns);
+    const double dt = dtSec(b, a);
+    const Pose3 Ta = pose(a), Tb = pose(b);
+    const Pose3 rel = Ta.inverse() * Tb;
+    if (v) *v = dt > 0 ? rel.translation().head<2>().norm() / dt : 0.0;
+    if (v && rel.translation().x() < 0) *v = -*v;
+    if (omega) *omega = dt > 0 ? std::atan2(rel.linear()(1, 0), rel.linear()(0, 0)) / dt : 0.0;
+  }
+  return true;
 }
 
 Trajectory3 Backend::sampleTrajectory(double rate_hz) const {

@@ -16,32 +16,6 @@ namespace {
 // First step of the search for a usable tangent around a slow or held pose [s]; doubles.
 constexpr double kTangentSearchStep_s = 1e-4;
 
-// Accumulates pose derivatives per parameter index, merging repeated indices.
-class JacobianAccumulator {
- public:
-  void add(int k, const Mat3& dR, const Vec3& dp) {
-    for (size_t s = 0; s < index_.size(); ++s) {
-      if (index_[s] == k) {
-        dR_[s] += dR;
-        dp_[s] += dp;
-        return;
-      }
-    }
-    index_.push_back(k);
-    dR_.push_back(dR);
-    dp_.push_back(dp);
-  }
-  size_t size() const { return index_.size(); }
-  int index(size_t s) const { return index_[s]; }
-  const Mat3& dR(size_t s) const { return dR_[s]; }
-  const Vec3& dp(size_t s) const { return dp_[s]; }
-
- private:
-  std::vector<int> index_;
-  std::vector<Mat3> dR_;
-  std::vector<Vec3> dp_;
-};
-
 void checkStampsAndSizes(const char* who, const std::vector<int64_t>& t_ns,
                          const std::vector<Vec2>& p_odom) {
   if (t_ns.size() != p_odom.size()) {
@@ -134,6 +108,7 @@ void BSpline::setControlPoints(const std::vector<Vec2>& control_points) {
                                 std::to_string(control_points_.size()));
   }
   control_points_ = control_points;
+  ++version_;
 }
 
 void BSpline::setControlPoint(int i, const Vec2& p) {
@@ -142,6 +117,7 @@ void BSpline::setControlPoint(int i, const Vec2& p) {
                                 " outside [0, " + std::to_string(numControlPoints()) + ")");
   }
   control_points_[i] = p;
+  ++version_;
 }
 
 void BSpline::setKnots(const std::vector<double>& knots_s) {
@@ -153,6 +129,7 @@ void BSpline::setKnots(const std::vector<double>& knots_s) {
     knots_ = std::move(old);
     throw;
   }
+  ++version_;
 }
 
 bool BSpline::covers(int64_t t_ns) const {
@@ -274,6 +251,7 @@ void BSpline::setStandstills(const std::vector<Interval>& standstills) {
     }
   }
   standstills_ = standstills;
+  ++version_;
 }
 
 void BSpline::setMinSpeed(double min_speed_mps) {
@@ -282,6 +260,7 @@ void BSpline::setMinSpeed(double min_speed_mps) {
                                 std::to_string(min_speed_mps));
   }
   min_speed_mps_ = min_speed_mps;
+  ++version_;
 }
 
 const BSpline::Interval* BSpline::standstillAt(double u) const {
@@ -347,13 +326,43 @@ double BSpline::heading(double u) const {
   return std::atan2(d.y(), d.x());
 }
 
-Pose3 BSpline::T_odom_base(double u, PoseJacobian* jac) const {
+double BSpline::planarPose(double u, Vec2* position, PlanarPoseJacobian* jac) const {
   const int p = degree_;
+  // Fast path (a moving vehicle): position and tangent from one basis evaluation at u.
+  if (!standstillAt(u)) {
+    const BasisDerivatives b = basis(u, 1);
+    Vec2 c = Vec2::Zero(), dc = Vec2::Zero();
+    for (int j = 0; j <= p; ++j) {
+      c += b.values(0, j) * control_points_[b.first + j];
+      dc += b.values(1, j) * control_points_[b.first + j];
+    }
+    const double speed = dc.norm();
+    if (std::isfinite(speed) && speed >= min_speed_mps_) {
+      *position = c;
+      if (jac) {
+        // d psi / d c' = (-c'_y, c'_x) / |c'|^2.
+        const Vec2 dpsi_ddc = Vec2(-dc.y(), dc.x()) / dc.squaredNorm();
+        jac->size = 0;
+        for (int j = 0; j <= p; ++j) {
+          const int i = b.first + j;
+          for (int coord = 0; coord < 2; ++coord) {
+            const int s = jac->size++;
+            jac->index[s] = 2 * i + coord;
+            jac->dpsi[s] = dpsi_ddc(coord) * b.values(1, j);
+            jac->dp[s] = Vec2::Zero();
+            jac->dp[s](coord) = b.values(0, j);
+          }
+        }
+      }
+      return std::atan2(dc.y(), dc.x());
+    }
+  }
+  // Held or slow: position and heading from where poseSource() says.
   const PoseSource src = poseSource(u);
   const BasisDerivatives bp = basis(src.u_position, 0);
   Vec2 c = Vec2::Zero();
   for (int j = 0; j <= p; ++j) c += bp.values(0, j) * control_points_[bp.first + j];
-
+  *position = c;
   double psi = default_heading_;
   BasisDerivatives bt;
   Vec2 dc = Vec2::Zero();
@@ -362,31 +371,42 @@ Pose3 BSpline::T_odom_base(double u, PoseJacobian* jac) const {
     for (int j = 0; j <= p; ++j) dc += bt.values(1, j) * control_points_[bt.first + j];
     psi = std::atan2(dc.y(), dc.x());
   }
-  const Mat3 R = rotZ(psi);
-
   if (jac) {
-    jac->clear();
-    // d psi / d c' = (-c'_y, c'_x) / |c'|^2; |c'| >= minSpeed() whenever has_tangent.
+    // |c'| >= minSpeed() whenever has_tangent.
     const Vec2 dpsi_ddc =
         src.has_tangent ? Vec2(Vec2(-dc.y(), dc.x()) / dc.squaredNorm()) : Vec2(Vec2::Zero());
-    const Mat3 dR_dpsi = skew(Vec3::UnitZ()) * R;
-    std::vector<int> active;
-    for (int j = 0; j <= p; ++j) {
-      active.push_back(bp.first + j);
-      if (src.has_tangent) active.push_back(bt.first + j);
-    }
-    std::sort(active.begin(), active.end());
-    active.erase(std::unique(active.begin(), active.end()), active.end());
-    for (int i : active) {
+    // Active control points: the union of the two spans, in increasing order.
+    const int lo = src.has_tangent ? std::min(bp.first, bt.first) : bp.first;
+    const int hi = src.has_tangent ? std::max(bp.first, bt.first) + p : bp.first + p;
+    jac->size = 0;
+    for (int i = lo; i <= hi; ++i) {
       const int jp = i - bp.first, jt = i - bt.first;
-      const double n0 = (jp >= 0 && jp <= p) ? bp.values(0, jp) : 0.0;
-      const double n1 = (src.has_tangent && jt >= 0 && jt <= p) ? bt.values(1, jt) : 0.0;
+      const bool in_p = jp >= 0 && jp <= p, in_t = src.has_tangent && jt >= 0 && jt <= p;
+      if (!in_p && !in_t) continue;
+      const double n0 = in_p ? bp.values(0, jp) : 0.0;
+      const double n1 = in_t ? bt.values(1, jt) : 0.0;
       for (int coord = 0; coord < 2; ++coord) {
-        Vec3 dp = Vec3::Zero();
-        dp(coord) = n0;
-        jac->add(2 * i + coord, dR_dpsi * (dpsi_ddc(coord) * n1), dp);
+        const int s = jac->size++;
+        jac->index[s] = 2 * i + coord;
+        jac->dpsi[s] = dpsi_ddc(coord) * n1;
+        jac->dp[s] = Vec2::Zero();
+        jac->dp[s](coord) = n0;
       }
     }
+  }
+  return psi;
+}
+
+Pose3 BSpline::T_odom_base(double u, PoseJacobian* jac) const {
+  Vec2 c;
+  PlanarPoseJacobian pj;
+  const double psi = planarPose(u, &c, jac ? &pj : nullptr);
+  const Mat3 R = rotZ(psi);
+  if (jac) {
+    jac->clear();
+    const Mat3 dR_dpsi = skew(Vec3::UnitZ()) * R;
+    for (int s = 0; s < pj.size; ++s)
+      jac->add(pj.index[s], dR_dpsi * pj.dpsi[s], Vec3(pj.dp[s].x(), pj.dp[s].y(), 0.0));
   }
   return makePose(R, Vec3(c.x(), c.y(), 0.0));
 }
@@ -555,6 +575,12 @@ BSplineCameraModel::BSplineCameraModel(std::shared_ptr<const BSpline> spline,
                                        const Pose3& T_base_cam, int64_t t_ref_ns)
     : spline_(std::move(spline)), T_base_cam_(T_base_cam), t_ref_ns_(t_ref_ns) {
   if (!spline_) throw std::invalid_argument("BSplineCameraModel: spline is null");
+  computeReference(&ref_);
+}
+
+void BSplineCameraModel::computeReference(Reference* ref) const {
+  ref->version = spline_->version();
+  ref->psi = spline_->planarPose(spline_->toSplineTime(t_ref_ns_), &ref->position, &ref->jac);
 }
 
 bool BSplineCameraModel::covers(int64_t t_ns) const {
@@ -562,31 +588,58 @@ bool BSplineCameraModel::covers(int64_t t_ns) const {
 }
 
 Pose3 BSplineCameraModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
-  PoseJacobian jac_t, jac_r;
-  const Pose3 T_odom_Vt = spline_->T_odom_base(spline_->toSplineTime(t_ns), jac ? &jac_t : nullptr);
-  const Pose3 T_odom_Vr =
-      spline_->T_odom_base(spline_->toSplineTime(t_ref_ns_), jac ? &jac_r : nullptr);
-  const Pose3 T_Vr_Vt = T_odom_Vr.inverse(Eigen::Isometry) * T_odom_Vt;
+  // The cached reference, or (the spline changed since) a fresh one on the stack.
+  Reference fresh;
+  const Reference* ref = &ref_;
+  if (ref_.version != spline_->version()) {
+    computeReference(&fresh);
+    ref = &fresh;
+  }
+  Vec2 p_t;
+  PlanarPoseJacobian jac_t;
+  const double psi_t = spline_->planarPose(spline_->toSplineTime(t_ns), &p_t, jac ? &jac_t : nullptr);
+  // T_Vr_Vt: heading psi_t - psi_r, position R_r^T (p_t - p_r).
+  const Eigen::Rotation2Dd R_rT(-ref->psi);
+  const Vec2 p_rel = R_rT * (p_t - ref->position);
+  const double dpsi = psi_t - ref->psi;
+  const Mat3 R_V = rotZ(dpsi);
+  const Pose3 T_Vr_Vt = makePose(R_V, Vec3(p_rel.x(), p_rel.y(), 0.0));
   if (jac) {
-    // R = R_r^T R_t, p = R_r^T (p_t - p_r):
-    // dR = R_r^T dR_t + dR_r^T R_t,  dp = R_r^T (dp_t - dp_r) + dR_r^T (p_t - p_r).
-    const Mat3 R_rT = T_odom_Vr.linear().transpose();
-    const Vec3 dpos = T_odom_Vt.translation() - T_odom_Vr.translation();
-    JacobianAccumulator acc;
-    for (size_t k = 0; k < jac_t.param_index.size(); ++k) {
-      acc.add(jac_t.param_index[k], R_rT * jac_t.dR[k], R_rT * jac_t.dt[k]);
+    // d psi_rel = dpsi_t - dpsi_r,  d p_rel = R_r^T (dp_t - dp_r) - dpsi_r J p_rel (J: +90 deg).
+    constexpr int kMax = 2 * PlanarPoseJacobian::kMaxParams;
+    int index[kMax];
+    double a[kMax];
+    Vec2 b[kMax];
+    int n = 0;
+    auto slot = [&](int k) {
+      for (int s = 0; s < n; ++s)
+        if (index[s] == k) return s;
+      index[n] = k;
+      a[n] = 0.0;
+      b[n] = Vec2::Zero();
+      return n++;
+    };
+    for (int s = 0; s < jac_t.size; ++s) {
+      const int q = slot(jac_t.index[s]);
+      a[q] += jac_t.dpsi[s];
+      b[q] += R_rT * jac_t.dp[s];
     }
-    for (size_t k = 0; k < jac_r.param_index.size(); ++k) {
-      const Mat3 dR_rT = jac_r.dR[k].transpose();
-      acc.add(jac_r.param_index[k], dR_rT * T_odom_Vt.linear(), dR_rT * dpos - R_rT * jac_r.dt[k]);
+    const Vec2 J_p_rel(-p_rel.y(), p_rel.x());
+    for (int s = 0; s < ref->jac.size; ++s) {
+      const int q = slot(ref->jac.index[s]);
+      a[q] -= ref->jac.dpsi[s];
+      b[q] -= R_rT * ref->jac.dp[s] + ref->jac.dpsi[s] * J_p_rel;
     }
+    // In the camera: dR_C = a R_cb [z]x R_V R_bc,  dp_C = a R_cb [z]x R_V p_bc + R_cb (b, 0).
+    const Mat3 R_bc = T_base_cam_.linear();
+    const Mat3 R_cb = R_bc.transpose();
+    const Mat3 zR_V = skew(Vec3::UnitZ()) * R_V;
+    const Mat3 M = R_cb * zR_V * R_bc;
+    const Vec3 m = R_cb * (zR_V * T_base_cam_.translation());
     jac->clear();
-    for (size_t s = 0; s < acc.size(); ++s) {
-      Mat3 dR_C;
-      Vec3 dp_C;
-      vehicleToCameraDerivative(T_base_cam_, acc.dR(s), acc.dp(s), &dR_C, &dp_C);
-      jac->add(acc.index(s), dR_C, dp_C);
-    }
+    for (int s = 0; s < n; ++s)
+      jac->add(index[s], a[s] * M,
+               a[s] * m + R_cb.col(0) * b[s].x() + R_cb.col(1) * b[s].y());
   }
   return vehicleToCamera(T_Vr_Vt, T_base_cam_);
 }

@@ -376,6 +376,13 @@ Trajectory3 integrateArcs(const std::vector<ArcEstimate>& arcs, int64_t step_ns)
   return out;
 }
 
+void Frontend::setNominalSpeed(double v_mps) {
+  if (!(v_mps > 0) || !std::isfinite(v_mps))
+    throw std::invalid_argument("Frontend::setNominalSpeed: " + std::to_string(v_mps) +
+                                " m/s is not a positive speed");
+  options_.nominal_speed_mps = v_mps;
+}
+
 Pose3 Frontend::T_odom_base(int64_t t_ns) const { return chain_ ? chain_->T_odom_base(t_ns) : Pose3::Identity(); }
 
 }  // namespace vwe_vo

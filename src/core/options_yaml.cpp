@@ -117,6 +117,7 @@ void loadOptions(const YAML::Node& node, const std::string& section, BackendOpti
   s.get("init_sample_interval_s", &o->init_sample_interval_s);
   s.get("smoothness_weight", &o->smoothness_weight);
   s.get("speed_prior_weight", &o->speed_prior_weight);
+  s.get("deformation_weight", &o->deformation_weight);
   s.get("max_backwards_jump_s", &o->max_backwards_jump_s);
   s.get("output_rate_hz", &o->output_rate_hz);
   s.get("seed", &o->seed);

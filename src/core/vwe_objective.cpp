@@ -1,5 +1,6 @@
 #include "vwe_vo/core/vwe_objective.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace vwe_vo {
@@ -41,44 +42,79 @@ EventVector subsampleEventsPerTimeSlice(const EventVector& events, int64_t t0_ns
   return out;
 }
 
-VweObjective::VweObjective(const CameraModel& camera, ProjectiveVolume* volume) : camera_(camera), volume_(volume) {}
+VweObjective::VweObjective(const CameraModel& camera, ProjectiveVolume* volume)
+    : camera_(camera), volume_(volume), pool_(volume->options().num_threads) {}
 
-VweEvaluation VweObjective::buildRays(const EventVector& events, const TrajectoryModel& model, bool with_jacobian) {
-  VweEvaluation ev;
-  rays_.clear();
-  jac_begin_.clear();
-  jac_param_.clear();
-  jac_value_.clear();
-  rays_.reserve(events.size());
+void VweObjective::buildChunk(const EventVector& events, size_t begin, size_t end, const TrajectoryModel& model,
+                              bool with_jacobian, Chunk* out) const {
+  out->rays.clear();
+  out->jac_count.clear();
+  out->jac_param.clear();
+  out->jac_value.clear();
+  out->skipped_time = out->skipped_behind = 0;
   const double fx = volume_->fx(), fy = volume_->fy(), cx = volume_->cx(), cy = volume_->cy();
-  for (const PixelEvent& e : events) {
+  PoseJacobian& pj = out->pose_jac;
+  for (size_t k = begin; k < end; ++k) {
+    const PixelEvent& e = events[k];
     if (!model.covers(e.t_ns)) {
-      ++ev.skipped_time;
+      ++out->skipped_time;
       continue;
     }
-    const Pose3 T = model.T_Cr_Ct(e.t_ns, with_jacobian ? &pose_jac_ : nullptr);
+    const Pose3 T = model.T_Cr_Ct(e.t_ns, with_jacobian ? &pj : nullptr);
     const Vec3 f = camera_.bearing(e.x, e.y).cast<double>();
     const Vec3 o = T.translation();
     const Vec3 d = T.linear() * f;
     VolumeRay ray;
     if (!makeVolumeRay(o, d, fx, fy, cx, cy, &ray)) {
-      ++ev.skipped_behind;
+      ++out->skipped_behind;
       continue;
     }
-    rays_.push_back(ray);
+    out->rays.push_back(ray);
     if (with_jacobian) {
-      jac_begin_.push_back(int(jac_param_.size()));
+      out->jac_count.push_back(int(pj.param_index.size()));
       const double ax = d.x() / d.z(), ay = d.y() / d.z();
-      for (size_t j = 0; j < pose_jac_.param_index.size(); ++j) {
-        const Vec3 dd = pose_jac_.dR[j] * f;
-        const Vec3& dto = pose_jac_.dt[j];
+      for (size_t j = 0; j < pj.param_index.size(); ++j) {
+        const Vec3 dd = pj.dR[j] * f;
+        const Vec3& dto = pj.dt[j];
         const double dax = (dd.x() - ax * dd.z()) / d.z();
         const double day = (dd.y() - ay * dd.z()) / d.z();
         const double dbx = dto.x() - dto.z() * ax - o.z() * dax;
         const double dby = dto.y() - dto.z() * ay - o.z() * day;
-        jac_param_.push_back(pose_jac_.param_index[j]);
-        jac_value_.emplace_back(fx * dax, fx * dbx, fy * day, fy * dby);
+        out->jac_param.push_back(pj.param_index[j]);
+        out->jac_value.emplace_back(fx * dax, fx * dbx, fy * day, fy * dby);
       }
+    }
+  }
+}
+
+VweEvaluation VweObjective::buildRays(const EventVector& events, const TrajectoryModel& model, bool with_jacobian) {
+  // Chunk boundaries from the event count only (results independent of the threads).
+  constexpr size_t kEventsPerChunk = 1024, kMaxChunks = 16;
+  const size_t N = events.size();
+  const size_t num_chunks = std::max<size_t>(1, std::min(kMaxChunks, N / kEventsPerChunk));
+  if (chunks_.size() < num_chunks) chunks_.resize(num_chunks);
+  pool_.run(int(num_chunks), [&](int c, int) {
+    buildChunk(events, N * size_t(c) / num_chunks, N * size_t(c + 1) / num_chunks, model, with_jacobian,
+               &chunks_[size_t(c)]);
+  });
+  VweEvaluation ev;
+  rays_.clear();
+  jac_begin_.clear();
+  jac_param_.clear();
+  jac_value_.clear();
+  for (size_t c = 0; c < num_chunks; ++c) {
+    const Chunk& ch = chunks_[c];
+    ev.skipped_time += ch.skipped_time;
+    ev.skipped_behind += ch.skipped_behind;
+    rays_.insert(rays_.end(), ch.rays.begin(), ch.rays.end());
+    if (with_jacobian) {
+      int offset = int(jac_param_.size());
+      for (int n : ch.jac_count) {
+        jac_begin_.push_back(offset);
+        offset += n;
+      }
+      jac_param_.insert(jac_param_.end(), ch.jac_param.begin(), ch.jac_param.end());
+      jac_value_.insert(jac_value_.end(), ch.jac_value.begin(), ch.jac_value.end());
     }
   }
   if (with_jacobian) jac_begin_.push_back(int(jac_param_.size()));

@@ -1,6 +1,7 @@
 #include "vwe_vo/ros/conversions.h"
 
 #include <cstring>
+#include <algorithm>
 #include <stdexcept>
 
 namespace vwe_vo {
@@ -195,6 +196,47 @@ sensor_msgs::Image imageToMsg(const cv::Mat& image, int64_t t_ns, const std::str
   m.data.resize(static_cast<size_t>(m.step) * image.rows);
   for (int y = 0; y < image.rows; ++y) std::memcpy(&m.data[y * m.step], image.ptr(y), m.step);
   return m;
+}
+
+SplineTrajectory splineToMsg(const BSpline& spline, int first_free, const std::string& frame_id) {
+  SplineTrajectory m;
+  const int64_t epoch = spline.epochNs();
+  m.header.stamp = toRosTime(epoch + secToNs(spline.validTo()));
+  m.header.frame_id = frame_id;
+  m.degree = uint8_t(spline.degree());
+  m.knot_epoch = toRosTime(epoch);
+  m.knots = spline.knots();
+  for (const Vec2& p : spline.controlPoints()) {
+    m.control_x.push_back(p.x());
+    m.control_y.push_back(p.y());
+  }
+  m.valid_from = toRosTime(epoch + secToNs(spline.validFrom()));
+  m.valid_to = toRosTime(epoch + secToNs(spline.validTo()));
+  m.first_free_control_point = uint32_t(std::max(0, first_free));
+  for (const BSpline::Interval& s : spline.standstills()) {
+    m.standstill_from.push_back(s.from_s);
+    m.standstill_to.push_back(s.to_s);
+  }
+  return m;
+}
+
+BSpline splineFromMsg(const SplineTrajectory& m) {
+  if (m.control_x.size() != m.control_y.size())
+    throw std::invalid_argument("SplineTrajectory: " + std::to_string(m.control_x.size()) +
+                                " control_x but " + std::to_string(m.control_y.size()) +
+                                " control_y");
+  if (m.standstill_from.size() != m.standstill_to.size())
+    throw std::invalid_argument("SplineTrajectory: " + std::to_string(m.standstill_from.size()) +
+                                " standstill_from but " + std::to_string(m.standstill_to.size()) +
+                                " standstill_to");
+  std::vector<Vec2> P;
+  for (size_t i = 0; i < m.control_x.size(); ++i) P.emplace_back(m.control_x[i], m.control_y[i]);
+  BSpline spline(int(m.degree), m.knots, P, toNs(m.knot_epoch));  // validates the sizes
+  std::vector<BSpline::Interval> still;
+  for (size_t k = 0; k < m.standstill_from.size(); ++k)
+    still.push_back({m.standstill_from[k], m.standstill_to[k]});
+  spline.setStandstills(still);
+  return spline;
 }
 
 }  // namespace vwe_vo

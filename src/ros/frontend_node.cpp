@@ -37,6 +37,9 @@ FrontendNode::FrontendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh
     odom_sub_ = nh_.subscribe(topics::kOdom, 200, &FrontendNode::odomCallback, this);
   if (node_options_.use_imu)
     imu_sub_ = nh_.subscribe(topics::kImu, 2000, &FrontendNode::imuCallback, this);
+  if (node_options_.follow_backend)
+    trajectory_sub_ =
+        nh_.subscribe(topics::kTrajectory, 10, &FrontendNode::trajectoryCallback, this);
   arcs_pub_ = nh_.advertise<AckermannArc>(topics::kArcs, 100);
   odom_pub_ = nh_.advertise<nav_msgs::Odometry>(topics::kFrontendOdom, 100);
   iwe_pub_ = nh_.advertise<sensor_msgs::Image>(topics::kFrontendIwe, 2);
@@ -65,6 +68,7 @@ void FrontendNode::readParameters() {
   pnh_.param("max_queue_packets", o.max_queue_packets, 2000);
   pnh_.param("max_latency_s", o.max_latency_s, 1.0);
   pnh_.param("status_period_s", o.status_period_s, 10.0);
+  pnh_.param("follow_backend", o.follow_backend, true);
   o.validate();
 
   const PipelineConfig config = loadPipelineConfig(o.config_path);
@@ -195,6 +199,21 @@ void FrontendNode::imuCallback(const sensor_msgs::Imu::ConstPtr& msg) {
   enqueue(std::move(input));
 }
 
+void FrontendNode::trajectoryCallback(const SplineTrajectory::ConstPtr& msg) {
+  Input input;
+  input.kind = Input::Kind::kTrajectory;
+  try {
+    input.spline = std::make_shared<const BSpline>(splineFromMsg(*msg));
+  } catch (const std::invalid_argument& e) {
+    ++trajectories_refused_;
+    ROS_WARN_THROTTLE(10, "frontend_node: SplineTrajectory refused: %s (%zu so far)", e.what(),
+                      trajectories_refused_.load());
+    return;
+  }
+  input.t_ns = toNs(msg->valid_to);
+  enqueue(std::move(input));
+}
+
 bool FrontendNode::enqueue(Input&& input) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -258,6 +277,9 @@ void FrontendNode::workerLoop() {
           case Input::Kind::kGyro:
             frontend_->addGyro(input.t_ns, input.yaw_rate);
             break;
+          case Input::Kind::kTrajectory:
+            handleTrajectory(*input.spline);
+            break;
         }
       }
       const double window_s =
@@ -292,6 +314,8 @@ void FrontendNode::handleEvents(const EventVector& events) {
         frontend_->stats().resets);
     recent_events_.clear();
     newest_event_ns_ = events.back().t_ns;
+    T_anchor_ = Pose3::Identity();
+    reset_ns_ = oldest;
   } else {
     newest_event_ns_ = std::max(newest_event_ns_, events.back().t_ns);
   }
@@ -318,6 +342,21 @@ void FrontendNode::handleEvents(const EventVector& events) {
       recent_events_.push_back(e);
 }
 
+void FrontendNode::handleTrajectory(const BSpline& spline) {
+  const int64_t t_end = spline.epochNs() + secToNs(spline.validTo());
+  // A spline from before a reset (a looped bag) or beyond the dead reckoning is not used.
+  if (!frontend_->hasPose() || spline.epochNs() < reset_ns_ || t_end > newest_event_ns_) return;
+  const double u = spline.validTo();
+  T_anchor_ = spline.T_odom_base(u) * frontend_->T_odom_base(t_end).inverse();
+  ++reanchors_;
+  const double v = spline.velocity(u).norm();
+  bool still = false;
+  for (const BSpline::Interval& s : spline.standstills()) still = still || (u >= s.from_s && u <= s.to_s);
+  if (!node_options_.use_odom && !still && std::isfinite(v) && v > 0.05) frontend_->setNominalSpeed(v);
+  ROS_INFO_THROTTLE(10, "frontend_node: re-anchored on the back-end's spline at %.3f s, speed %.3f m/s (%zu so far)",
+                    nsToSec(t_end), v, reanchors_);
+}
+
 void FrontendNode::publishArc(const ArcEstimate& arc) {
   switch (arc.status) {
     case ArcStatus::kOk:
@@ -340,7 +379,7 @@ void FrontendNode::publishArc(const ArcEstimate& arc) {
   odom.header.stamp = toRosTime(arc.t_end_ns);
   odom.header.frame_id = frames::kOdom;
   odom.child_frame_id = frames::kBase;
-  odom.pose.pose = poseToMsg(frontend_->T_odom_base(arc.t_end_ns));
+  odom.pose.pose = poseToMsg(anchoredPose(arc.t_end_ns));
   odom.twist.twist.linear.x = arc.v;
   odom.twist.twist.angular.z = arc.omega;
   odom_pub_.publish(odom);

@@ -193,6 +193,44 @@ TEST(Backend, SpeedPriorGradientMatchesCentralFiniteDifferences) {
   }
 }
 
+TEST(Backend, DeformationPriorGradientMatchesCentralFiniteDifferencesAndSparesQuadraticMoves) {
+  // No volumes: the cost is the deformation prior alone (normaliser 1).
+  auto spline = std::make_shared<BSpline>(*truthSpline());
+  const int first_free = 4;
+  MultiVolumeObjective objective(spline, testExtrinsics(), first_free, {}, nullptr);
+  const Eigen::VectorXd p0 = objective.freeParams();
+  const double w = 0.7;
+  MultiVolumeCost cost(&objective, p0, 0.02, 1.0, nullptr, w);
+  const int n = cost.NumParameters();
+  Eigen::VectorXd x(n), g(n);
+  for (int k = 0; k < n; ++k) x[k] = std::sin(1.7 * k) + 0.3 * std::cos(0.4 * k * k);
+  double f = 0.0;
+  ASSERT_TRUE(cost.Evaluate(x.data(), &f, g.data()));
+  ASSERT_GT(f, 0.0);
+  const double h = 1e-6;
+  for (int k = 0; k < n; ++k) {
+    Eigen::VectorXd xp = x, xm = x;
+    xp[k] += h;
+    xm[k] -= h;
+    double fp = 0.0, fm = 0.0;
+    ASSERT_TRUE(cost.Evaluate(xp.data(), &fp, nullptr));
+    ASSERT_TRUE(cost.Evaluate(xm.data(), &fm, nullptr));
+    EXPECT_NEAR(g[k], (fp - fm) / (2 * h), 1e-6 * g.norm()) << "param " << k;
+  }
+  // Moves quadratic in the control-point index that start at the fixed points cost only the
+  // third difference across the boundary: far less than wiggles of the same size.
+  Eigen::VectorXd quad(n), wiggle(n);
+  for (int k = 0; k < n / 2; ++k) {
+    const double q = 0.01 * (k + 1) * (k + 1);
+    quad.segment<2>(2 * k) = Vec2(q, -q);
+    wiggle.segment<2>(2 * k) = (k % 2 ? 1.0 : -1.0) * Vec2(q, -q);
+  }
+  double f_quad = 0.0, f_wiggle = 0.0;
+  ASSERT_TRUE(cost.Evaluate(quad.data(), &f_quad, nullptr));
+  ASSERT_TRUE(cost.Evaluate(wiggle.data(), &f_wiggle, nullptr));
+  EXPECT_LT(f_quad, 1e-3 * f_wiggle);
+}
+
 TEST(Backend, RefinementReducesTheRotationErrorOfBiasedArcs) {
   Scene sc;
   const double bias = 3.0 * kPi / 180;

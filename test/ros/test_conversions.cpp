@@ -64,6 +64,31 @@ TEST(Conversions, CameraInfoRoundTrip) {
   EXPECT_THROW(calibrationFromMsg(bad), std::invalid_argument);
 }
 
+TEST(Conversions, SplineRoundTripKeepsKnotsControlPointsAndStandstills) {
+  std::vector<double> knots;
+  for (int k = 0; k < 11; ++k) knots.push_back((k - 3) * 0.3);
+  std::vector<Vec2> P;
+  for (int i = 0; i < 7; ++i) P.emplace_back(0.1 * i, 0.02 * i * i);
+  BSpline spline(3, knots, P, 5000000000);
+  spline.setStandstills({{0.4, 0.6}});
+  const SplineTrajectory msg = splineToMsg(spline, 4, "odom");
+  EXPECT_EQ(msg.header.frame_id, "odom");
+  EXPECT_EQ(msg.first_free_control_point, 4u);
+  EXPECT_EQ(toNs(msg.valid_from), 5000000000 + secToNs(spline.validFrom()));
+  const BSpline back = splineFromMsg(msg);
+  EXPECT_EQ(back.epochNs(), spline.epochNs());
+  EXPECT_EQ(back.knots(), spline.knots());
+  ASSERT_EQ(back.standstills().size(), 1u);
+  for (double u = 0.0; u < 1.2; u += 0.05)
+    EXPECT_TRUE(back.T_odom_base(u).isApprox(spline.T_odom_base(u), 1e-12)) << u;
+  SplineTrajectory bad = msg;
+  bad.control_y.pop_back();
+  EXPECT_THROW(splineFromMsg(bad), std::invalid_argument);
+  bad = msg;
+  bad.knots.pop_back();
+  EXPECT_THROW(splineFromMsg(bad), std::invalid_argument);
+}
+
 TEST(Conversions, PoseRoundTrip) {
   const Pose3 T = makePose(Quat(Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized())), Vec3(1, -2, 3));
   const Pose3 B = poseFromMsg(poseToMsg(T));

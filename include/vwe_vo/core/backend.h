@@ -36,6 +36,7 @@ struct BackendOptions {
   double init_sample_interval_s = 0.05;  // spacing of the dead-reckoned poses fitted [s]
   double smoothness_weight = 0.05;       // second-difference prior of the initial fit [1]
   double speed_prior_weight = 10.0;      // relative-speed prior vs the normalised VWE (0: off) [1]
+  double deformation_weight = 0.03;      // third-difference prior on the control-point moves (0: off) [1]
   double max_backwards_jump_s = 0.05;    // arcs older than newest - this reset the back-end [s]
   double output_rate_hz = 20.0;          // rate of the sampled trajectory (backend.tum) [Hz]
   uint64_t seed = 1;                     // subsampling seed
@@ -112,12 +113,17 @@ class SpeedPrior {
   double weight_;
 };
 
-/// Ceres view of a MultiVolumeObjective: minimises -sum(var)/sum(var at x0) (+ a SpeedPrior) over
-/// x = (params - params0) / step_scale, so that the start is x = 0 with cost -1.
+/// Ceres view of a MultiVolumeObjective: minimises -sum(var)/sum(var at x0) (+ a SpeedPrior, + a
+/// deformation prior) over x = (params - params0) / step_scale, so that the start is x = 0 with
+/// cost -1. The deformation prior is deformation_weight * sum_i |x_i - 3 x_{i+1} + 3 x_{i+2} -
+/// x_{i+3}|^2 over the control-point moves x_i (the fixed points before the free ones count as
+/// zero moves): it leaves moves that are quadratic in the control-point index free (an offset of
+/// heading or of yaw rate) and damps wiggles the VWE's noise would put into the heading.
 class MultiVolumeCost : public ceres::FirstOrderFunction {
  public:
   MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0, double step_scale,
-                  double normaliser, const SpeedPrior* prior = nullptr);
+                  double normaliser, const SpeedPrior* prior = nullptr,
+                  double deformation_weight = 0.0);
   bool Evaluate(const double* x, double* cost, double* gradient) const override;
   int NumParameters() const override { return static_cast<int>(params0_.size()); }
   Eigen::VectorXd params(const double* x) const;
@@ -127,6 +133,7 @@ class MultiVolumeCost : public ceres::FirstOrderFunction {
   Eigen::VectorXd params0_;
   double step_scale_, normaliser_;
   const SpeedPrior* prior_;
+  double deformation_weight_;
 };
 
 /// Least squares of the control points [first, n) of `spline` to positions p_odom at spline
@@ -167,6 +174,16 @@ class Backend {
   const BSpline& spline() const { return *spline_; }
   /// Newest time the spline is initialised and refined up to.
   int64_t processedUntil() const { return processed_ns_; }
+  /// Start of the first arc and end of the newest arc since the last reset (-1: none yet).
+  int64_t oldestArcTime() const;
+  int64_t newestArcTime() const { return newest_arc_ns_; }
+  /// First control point the last refinement optimised (the ones before it are fixed).
+  int firstFree() const { return first_free_; }
+  /// Pose of base_link in odom at t_ns with its speed [m/s] and yaw rate [rad/s] (may be null):
+  /// on the refined spline up to processedUntil(), beyond it (up to the newest arc) the
+  /// front-end's dead reckoning anchored on the spline at processedUntil(); before the first
+  /// refinement the dead reckoning alone. False if t_ns is outside [first arc, newest arc].
+  bool poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const;
   /// Poses of base_link in odom every 1/rate_hz from the first arc to processedUntil().
   Trajectory3 sampleTrajectory(double rate_hz) const;
   const BackendStats& stats() const { return stats_; }
@@ -190,6 +207,8 @@ class Backend {
   std::unique_ptr<ArcChain> chain_;                          // front-end dead reckoning
   int64_t newest_arc_ns_ = -1;
   int64_t processed_ns_ = -1;
+  int first_free_ = 0;
+  Pose3 T_anchor_ = Pose3::Identity();  // maps the dead reckoning onto the spline's odom
   std::shared_ptr<BSpline> spline_;
   BackendStats stats_;
 };

@@ -23,6 +23,17 @@ struct BasisDerivatives {
   Matrix values;  // (num_derivs + 1) x (degree + 1): (k, j) = d^k N_{first+j,p} / du^k
 };
 
+/// Planar pose of base_link (heading psi, position c) and its derivatives w.r.t. the control
+/// point coordinates (parameter index 2 i + coordinate), in fixed-size storage: filling one
+/// allocates nothing on the heap. Each parameter index appears once.
+struct PlanarPoseJacobian {
+  static constexpr int kMaxParams = 4 * (kBSplineMaxDegree + 1);
+  int size = 0;
+  int index[kMaxParams];
+  double dpsi[kMaxParams];  // d psi / d theta_k [rad]
+  Vec2 dp[kMaxParams];      // d c / d theta_k [1]
+};
+
 /// c(u) = sum_i N_{i,p}(u) P_i, u = spline time [s] relative to the knot epoch (int64 ns).
 /// The domain is [knots[p], knots[n+1]] (n + 1 control points); outside it the polynomial of
 /// the first / last span is extrapolated. Parameters of the pose Jacobians are the control
@@ -91,7 +102,10 @@ class BSpline {
   void setMinSpeed(double min_speed_mps);
   double minSpeed() const { return min_speed_mps_; }
   /// Heading [rad] used when the spline has no usable tangent at all.
-  void setDefaultHeading(double yaw) { default_heading_ = yaw; }
+  void setDefaultHeading(double yaw) {
+    default_heading_ = yaw;
+    ++version_;
+  }
   double defaultHeading() const { return default_heading_; }
 
   /// Heading psi(u) [rad] following the rules above; always finite.
@@ -99,6 +113,13 @@ class BSpline {
   /// Pose of base_link in odom at u: position (c, 0), rotation Rz(psi). If jac is not null it
   /// is filled w.r.t. the control points; each parameter index appears at most once.
   Pose3 T_odom_base(double u, PoseJacobian* jac = nullptr) const;
+  /// The same pose as heading psi (returned) and position c, with its Jacobian (if not null) in
+  /// fixed-size storage; one basis evaluation when the vehicle moves (no standstill, usable
+  /// tangent at u).
+  double planarPose(double u, Vec2* position, PlanarPoseJacobian* jac = nullptr) const;
+  /// Incremented by every change of the control points, knots, standstills, minimum speed or
+  /// default heading (lets views cache what they derive from the spline).
+  uint64_t version() const { return version_; }
   /// T_odom_base(u) * T_base_cam, with the Jacobian likewise.
   Pose3 T_odom_cam(double u, const Pose3& T_base_cam, PoseJacobian* jac = nullptr) const;
 
@@ -121,6 +142,7 @@ class BSpline {
   std::vector<Interval> standstills_;
   double min_speed_mps_ = 1e-3;
   double default_heading_ = 0.0;
+  uint64_t version_ = 0;
 };
 
 /// Options of the least-squares fit of a BSpline to timestamped positions.
@@ -155,7 +177,9 @@ BSpline fitBSplineWithKnots(const std::vector<int64_t>& t_ns, const std::vector<
 /// theta = the control points stacked [x0, y0, x1, y1, ...] (numParams = 2 numControlPoints).
 /// The Jacobian holds the control points active at t or at t_ref (and where their headings
 /// come from); each parameter index appears once (contributions of t and t_ref are merged).
-/// The spline is shared: changing its control points changes the model.
+/// The spline is shared: changing its control points changes the model. The reference pose and
+/// its Jacobian are computed once (construction) and reused while the spline's version() is
+/// unchanged; T_Cr_Ct is const and safe to call from several threads.
 class BSplineCameraModel : public TrajectoryModel {
  public:
   BSplineCameraModel(std::shared_ptr<const BSpline> spline, const Pose3& T_base_cam,
@@ -171,9 +195,18 @@ class BSplineCameraModel : public TrajectoryModel {
   const Pose3& T_base_cam() const { return T_base_cam_; }
 
  private:
+  struct Reference {
+    uint64_t version = 0;
+    double psi = 0.0;
+    Vec2 position = Vec2::Zero();
+    PlanarPoseJacobian jac;
+  };
+  void computeReference(Reference* ref) const;
+
   std::shared_ptr<const BSpline> spline_;
   Pose3 T_base_cam_;
   int64_t t_ref_ns_;
+  Reference ref_;  // cached at construction
 };
 
 }  // namespace vwe_vo

@@ -104,6 +104,10 @@ class Frontend {
   /// Variance of the VWE of `events` for an arc (omega, v) about t_ref.
   double contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v);
 
+  /// Replaces the speed used when no odometry is given (e.g. the back-end's refined speed);
+  /// throws std::invalid_argument unless positive and finite.
+  void setNominalSpeed(double v_mps);
+
   /// Dead-reckoned pose of base_link in odom at t (arcs chained from the identity).
   Pose3 T_odom_base(int64_t t_ns) const;
   bool hasPose() const { return chain_ != nullptr && chain_->numArcs() > 0; }

@@ -11,6 +11,7 @@
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/events.h"
 #include "vwe_vo/core/projective_volume.h"
+#include "vwe_vo/core/thread_pool.h"
 #include "vwe_vo/core/trajectory_model.h"
 
 namespace vwe_vo {
@@ -32,6 +33,9 @@ struct VweEvaluation {
   size_t votes = 0;          // plane votes cast
 };
 
+/// Rays (and their Jacobians) are built in parallel on the volume's num_threads threads, in
+/// chunks whose boundaries depend only on the number of events: the result does not depend on
+/// the thread count. The model's T_Cr_Ct must therefore be safe to call concurrently (const).
 class VweObjective {
  public:
   /// The volume is shared (one grid, reused for every evaluation); both must outlive this.
@@ -50,15 +54,28 @@ class VweObjective {
  private:
   VweEvaluation buildRays(const EventVector& events, const TrajectoryModel& model, bool with_jacobian);
 
+  // What one chunk of events produced (kept between calls: no allocation once warmed up).
+  struct Chunk {
+    std::vector<VolumeRay> rays;
+    std::vector<int> jac_count;
+    std::vector<int> jac_param;
+    std::vector<Eigen::Vector4d> jac_value;
+    size_t skipped_time = 0, skipped_behind = 0;
+    PoseJacobian pose_jac;
+  };
+  void buildChunk(const EventVector& events, size_t begin, size_t end, const TrajectoryModel& model,
+                  bool with_jacobian, Chunk* out) const;
+
   const CameraModel& camera_;
   ProjectiveVolume* volume_;
+  ThreadPool pool_;
+  std::vector<Chunk> chunks_;
   std::vector<VolumeRay> rays_;
   // Per ray: derivatives of [u0, du, v0, dv] w.r.t. the parameters that move it.
   std::vector<int> jac_begin_;
   std::vector<int> jac_param_;
   std::vector<Eigen::Vector4d> jac_value_;
   std::vector<Eigen::Vector4d> sensitivities_;
-  PoseJacobian pose_jac_;
 };
 
 }  // namespace vwe_vo

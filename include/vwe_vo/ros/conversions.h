@@ -14,6 +14,8 @@
 
 #include "vwe_vo/AckermannArc.h"
 #include "vwe_vo/EventArray.h"
+#include "vwe_vo/SplineTrajectory.h"
+#include "vwe_vo/core/bspline.h"
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/events.h"
 #include "vwe_vo/core/frontend.h"
@@ -61,5 +63,10 @@ sensor_msgs::Image imageToMsg(const cv::Mat& image, int64_t t_ns, const std::str
 
 AckermannArc arcToMsg(const ArcEstimate& arc, const std::string& frame_id);
 ArcEstimate arcFromMsg(const AckermannArc& msg);
+
+/// The spline (knots, control points, standstills; stamp = its validTo()) in frame_id.
+SplineTrajectory splineToMsg(const BSpline& spline, int first_free, const std::string& frame_id);
+/// Throws std::invalid_argument naming what is inconsistent (sizes, knots, standstills).
+BSpline splineFromMsg(const SplineTrajectory& msg);
 
 }  // namespace vwe_vo

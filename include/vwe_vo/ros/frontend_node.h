@@ -19,6 +19,8 @@
 #include <thread>
 
 #include "vwe_vo/EventArray.h"
+#include "vwe_vo/SplineTrajectory.h"
+#include "vwe_vo/core/bspline.h"
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/frontend.h"
 #include "vwe_vo/core/math.h"
@@ -36,6 +38,7 @@ struct FrontendNodeOptions {
   int max_queue_packets = 2000;   // ~max_queue_packets: bound of the input queue [messages]
   double max_latency_s = 1.0;     // ~max_latency_s: backlog beyond this drops whole windows [s]
   double status_period_s = 10.0;  // ~status_period_s: period of the one-line status [s]
+  bool follow_backend = true;     // ~follow_backend: re-anchor on /vwe/trajectory, use its speed
   void validate() const;          // throws std::invalid_argument naming the parameter
 };
 
@@ -52,10 +55,11 @@ class FrontendNode {
  private:
   /// One queued input, converted to core types by a callback.
   struct Input {
-    enum class Kind { kEvents, kOdometry, kGyro } kind = Kind::kEvents;
+    enum class Kind { kEvents, kOdometry, kGyro, kTrajectory } kind = Kind::kEvents;
     EventVector events;
     int64_t t_ns = 0;
     double v = 0.0, yaw_rate = 0.0;
+    std::shared_ptr<const BSpline> spline;  // kTrajectory
   };
 
   void readParameters();
@@ -63,17 +67,21 @@ class FrontendNode {
   void cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg);
   void odomCallback(const nav_msgs::Odometry::ConstPtr& msg);
   void imuCallback(const sensor_msgs::Imu::ConstPtr& msg);
+  void trajectoryCallback(const SplineTrajectory::ConstPtr& msg);
   /// False (and counted) if the queue is full or there is no calibration yet.
   bool enqueue(Input&& input);
 
   void workerLoop();
   void handleEvents(const EventVector& events);
+  /// Re-anchors the published dead reckoning on the refined spline's end and takes its speed.
+  void handleTrajectory(const BSpline& spline);
+  Pose3 anchoredPose(int64_t t_ns) const { return T_anchor_ * frontend_->T_odom_base(t_ns); }
   void publishArc(const ArcEstimate& arc);
   void publishImage(const ArcEstimate& arc);
   void logStatus();
 
   ros::NodeHandle nh_, pnh_;
-  ros::Subscriber events_sub_, camera_info_sub_, odom_sub_, imu_sub_;
+  ros::Subscriber events_sub_, camera_info_sub_, odom_sub_, imu_sub_, trajectory_sub_;
   ros::Publisher arcs_pub_, odom_pub_, iwe_pub_;
 
   FrontendNodeOptions node_options_;
@@ -92,7 +100,7 @@ class FrontendNode {
   std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0},
       packets_queue_full_{0};
   std::atomic<size_t> inputs_before_calibration_{0}, events_outside_msg_{0},
-      camera_info_refused_{0};
+      camera_info_refused_{0}, trajectories_refused_{0};
 
   // Owned by the worker thread.
   std::unique_ptr<CameraModel> camera_;
@@ -100,6 +108,9 @@ class FrontendNode {
   std::unique_ptr<VweImageRenderer> renderer_;
   EventVector recent_events_;     // events kept for the VWE image (only while it is watched)
   int64_t newest_event_ns_ = -1;  // for the size of a backwards jump
+  Pose3 T_anchor_ = Pose3::Identity();  // maps the dead reckoning onto the back-end's odom
+  int64_t reset_ns_ = -1;               // data time of the last reset (older splines ignored)
+  size_t reanchors_ = 0;
   size_t windows_ok_ = 0, windows_standstill_ = 0, windows_lost_ = 0, windows_low_ = 0;
   size_t reported_out_of_order_ = 0;
   double busy_wall_s_ = 0.0,

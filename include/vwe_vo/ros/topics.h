@@ -16,6 +16,8 @@ constexpr const char* kTrajectory = "/vwe/trajectory";       // vwe_vo/SplineTra
 constexpr const char* kImageRaw = "/dvs/image_raw";          // sensor_msgs/Image, APS frames (mono8)
 constexpr const char* kBaselineOdom = "/vwe/baseline/odom";  // nav_msgs/Odometry, frame baseline
 constexpr const char* kBaselineTracks = "/vwe/baseline/tracks";  // sensor_msgs/Image, KLT tracks
+constexpr const char* kBackendOdom = "/vwe/odom";            // nav_msgs/Odometry on the spline
+constexpr const char* kPath = "/vwe/path";                   // nav_msgs/Path, the refined spline
 
 }  // namespace topics
 

@@ -1,0 +1,116 @@
+// backend_node: runs the sliding-window spline back-end on /dvs/events and the front-end's
+// /vwe/arcs, live or from a bag. Callbacks only validate, convert and enqueue into a bounded
+// queue; one worker thread runs vwe_vo::Backend and publishes the refined spline
+// (/vwe/trajectory, /vwe/path) after each refinement and, in data time, /vwe/odom + the tf
+// odom -> base_link at ~odom_rate_hz (on the refined spline, beyond it the front-end's arcs
+// anchored on its end).
+#pragma once
+
+#include <nav_msgs/Odometry.h>
+#include <nav_msgs/Path.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <tf2_ros/transform_broadcaster.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "vwe_vo/AckermannArc.h"
+#include "vwe_vo/EventArray.h"
+#include "vwe_vo/core/backend.h"
+#include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/frontend.h"
+#include "vwe_vo/core/math.h"
+
+namespace vwe_vo {
+
+/// Everything the node reads from the parameter server, once, at start-up.
+struct BackendNodeOptions {
+  std::string config_path;        // ~config: pipeline YAML (back-end options, T_base_cam)
+  std::string calibration_path;   // ~calibration: CameraInfo-style YAML; empty: /dvs/camera_info
+  int max_queue_packets = 4000;   // ~max_queue_packets: bound of the input queue [messages]
+  double odom_rate_hz = 20.0;     // ~odom_rate_hz: rate of /vwe/odom and the tf (data time) [Hz]
+  double max_gap_s = 2.0;         // ~max_gap_s: events or arcs this far apart reset [s]
+  int path_max_poses = 2000;      // ~path_max_poses: newest poses kept in /vwe/path
+  double status_period_s = 10.0;  // ~status_period_s: period of the one-line status [s]
+  bool publish_tf = true;         // ~publish_tf: broadcast odom -> base_link
+  void validate() const;          // throws std::invalid_argument naming the parameter
+};
+
+class BackendNode {
+ public:
+  /// Reads the parameters and the configuration (throws std::exception on unusable ones),
+  /// subscribes, advertises and starts the worker.
+  BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh);
+  /// Stops and joins the worker.
+  ~BackendNode();
+  BackendNode(const BackendNode&) = delete;
+  BackendNode& operator=(const BackendNode&) = delete;
+
+ private:
+  struct Input {
+    enum class Kind { kEvents, kArc } kind = Kind::kEvents;
+    EventVector events;
+    ArcEstimate arc;
+  };
+
+  void readParameters();
+  void eventsCallback(const EventArray::ConstPtr& msg);
+  void cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg);
+  void arcCallback(const AckermannArc::ConstPtr& msg);
+  bool enqueue(Input&& input);
+
+  void workerLoop();
+  void handleEvents(const EventVector& events);
+  void handleArc(ArcEstimate arc);
+  /// Resets the back-end and what was published from it (the odometry restarts at identity).
+  void resetBackend(const std::string& why);
+  void publishRefinement();
+  void publishOdometry();
+  void logStatus();
+
+  ros::NodeHandle nh_, pnh_;
+  ros::Subscriber events_sub_, camera_info_sub_, arcs_sub_;
+  ros::Publisher trajectory_pub_, odom_pub_, path_pub_;
+  std::unique_ptr<tf2_ros::TransformBroadcaster> tf_;
+
+  BackendNodeOptions node_options_;
+  BackendOptions backend_options_;
+  Pose3 T_base_cam_ = Pose3::Identity();
+
+  // mutex_ guards everything up to the next blank line.
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<Input> queue_;
+  bool have_calibration_ = false;
+  CameraCalibration calibration_;
+  bool stop_ = false;
+
+  std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0},
+      inputs_queue_full_{0}, inputs_before_calibration_{0}, events_outside_msg_{0},
+      camera_info_refused_{0}, arcs_in_{0};
+
+  // Owned by the worker thread.
+  std::unique_ptr<CameraModel> camera_;
+  std::unique_ptr<Backend> backend_;
+  int64_t newest_event_ns_ = -1;
+  int64_t newest_arc_ns_ = -1;
+  int64_t next_odom_ns_ = -1;  // data time of the next /vwe/odom
+  ArcEstimate last_good_arc_;
+  bool have_good_arc_ = false;
+  size_t arcs_lost_ = 0, arcs_stale_ = 0, gaps_ = 0, loops_ = 0, refinements_ = 0;
+  size_t reported_resets_ = 0, reported_out_of_order_ = 0;
+  nav_msgs::Path path_;
+  double busy_wall_s_ = 0.0;
+  ros::WallTime last_status_;
+
+  std::thread worker_;
+};
+
+}  // namespace vwe_vo

@@ -1,0 +1,374 @@
+#include "vwe_vo/ros/backend_node.h"
+
+#include <geometry_msgs/TransformStamped.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "vwe_vo/SplineTrajectory.h"
+#include "vwe_vo/core/options_yaml.h"
+#include "vwe_vo/ros/conversions.h"
+#include "vwe_vo/ros/topics.h"
+
+namespace vwe_vo {
+
+void BackendNodeOptions::validate() const {
+  auto fail = [](const std::string& m) { throw std::invalid_argument("backend_node: " + m); };
+  if (max_queue_packets < 1) fail("~max_queue_packets must be at least 1");
+  if (!(odom_rate_hz > 0 && odom_rate_hz <= 1000)) fail("~odom_rate_hz must be in (0, 1000] [Hz]");
+  if (!(max_gap_s > 0)) fail("~max_gap_s must be positive [s]");
+  if (path_max_poses < 1) fail("~path_max_poses must be at least 1");
+  if (!(status_period_s > 0)) fail("~status_period_s must be positive [s]");
+}
+
+BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
+    : nh_(nh), pnh_(pnh) {
+  readParameters();
+  events_sub_ = nh_.subscribe(topics::kEvents, 1000, &BackendNode::eventsCallback, this);
+  camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &BackendNode::cameraInfoCallback, this);
+  arcs_sub_ = nh_.subscribe(topics::kArcs, 1000, &BackendNode::arcCallback, this);
+  trajectory_pub_ = nh_.advertise<SplineTrajectory>(topics::kTrajectory, 10);
+  odom_pub_ = nh_.advertise<nav_msgs::Odometry>(topics::kBackendOdom, 100);
+  path_pub_ = nh_.advertise<nav_msgs::Path>(topics::kPath, 2);
+  if (node_options_.publish_tf) tf_ = std::make_unique<tf2_ros::TransformBroadcaster>();
+  path_.header.frame_id = frames::kOdom;
+  if (!have_calibration_)
+    ROS_INFO("backend_node: waiting for %s (no ~calibration given)",
+             camera_info_sub_.getTopic().c_str());
+  worker_ = std::thread(&BackendNode::workerLoop, this);
+}
+
+BackendNode::~BackendNode() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+void BackendNode::readParameters() {
+  BackendNodeOptions& o = node_options_;
+  pnh_.param<std::string>("config", o.config_path, defaultConfigDir() + "/vwe_vo.yaml");
+  pnh_.param<std::string>("calibration", o.calibration_path, "");
+  pnh_.param("max_queue_packets", o.max_queue_packets, 4000);
+  pnh_.param("odom_rate_hz", o.odom_rate_hz, 20.0);
+  pnh_.param("max_gap_s", o.max_gap_s, 2.0);
+  pnh_.param("path_max_poses", o.path_max_poses, 2000);
+  pnh_.param("status_period_s", o.status_period_s, 10.0);
+  pnh_.param("publish_tf", o.publish_tf, true);
+  o.validate();
+
+  const PipelineConfig config = loadPipelineConfig(o.config_path);
+  for (const std::string& w : config.warnings) ROS_WARN("backend_node: %s", w.c_str());
+  backend_options_ = config.backend;
+  backend_options_.validate();
+  T_base_cam_ = config.T_base_cam;
+  if (!o.calibration_path.empty()) {
+    calibration_ = loadCameraCalibrationYaml(o.calibration_path);  // throws naming file and field
+    have_calibration_ = true;
+  }
+  const BackendOptions& b = backend_options_;
+  ROS_INFO(
+      "backend_node: config %s, calibration %s; spline degree %d, knots every %.2f s, window "
+      "%.1f s refined every %.1f s, volumes every %.2f s over %.2f s with <= %zu events, %d "
+      "iterations; odom at %.1f Hz, reset after a %.1f s gap, tf %d",
+      o.config_path.c_str(),
+      o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(), b.degree,
+      b.knot_spacing_s, b.window_s, b.update_interval_s, b.tau1_s, b.tau2_s,
+      b.max_events_per_volume, b.max_iterations, o.odom_rate_hz, o.max_gap_s, o.publish_tf);
+}
+
+// ------------------------------------------------------------------------------------------------
+// Callbacks: validate, convert, enqueue. Nothing here runs the core.
+
+void BackendNode::eventsCallback(const EventArray::ConstPtr& msg) {
+  ++packets_in_;
+  if (msg->events.empty()) {
+    ++packets_empty_;
+    ROS_WARN_THROTTLE(10, "backend_node: empty EventArray ignored (%zu so far)",
+                      packets_empty_.load());
+    return;
+  }
+  int width = 0, height = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!have_calibration_) {
+      ++inputs_before_calibration_;
+      return;
+    }
+    width = calibration_.width;
+    height = calibration_.height;
+  }
+  if (int(msg->width) != width || int(msg->height) != height) {
+    ++packets_wrong_size_;
+    ROS_ERROR_THROTTLE(5,
+                       "backend_node: EventArray is %ux%u but the calibration is %dx%d: packet "
+                       "refused (%zu so far)",
+                       msg->width, msg->height, width, height, packets_wrong_size_.load());
+    return;
+  }
+  Input input;
+  EventConversionStats stats;
+  eventsFromMsg(*msg, &input.events, &stats);
+  if (stats.dropped > 0) {
+    events_outside_msg_ += stats.dropped;
+    ROS_WARN_THROTTLE(10, "backend_node: %zu events outside the %dx%d sensor dropped (%zu so far)",
+                      stats.dropped, width, height, events_outside_msg_.load());
+  }
+  if (input.events.empty()) return;
+  enqueue(std::move(input));
+}
+
+void BackendNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (have_calibration_) {
+    if (int(msg->width) != calibration_.width || int(msg->height) != calibration_.height) {
+      ++camera_info_refused_;
+      ROS_ERROR_THROTTLE(10,
+                         "backend_node: camera_info is %ux%u but the calibration in use is %dx%d: "
+                         "refused, keeping the first (%zu refused so far)",
+                         msg->width, msg->height, calibration_.width, calibration_.height,
+                         camera_info_refused_.load());
+    }
+    return;
+  }
+  try {
+    calibration_ = calibrationFromMsg(*msg);
+  } catch (const std::invalid_argument& e) {
+    ++camera_info_refused_;
+    ROS_WARN_THROTTLE(5,
+                      "backend_node: camera_info refused: %s; still waiting for a valid one (%zu "
+                      "refused so far)",
+                      e.what(), camera_info_refused_.load());
+    return;
+  }
+  have_calibration_ = true;
+  ROS_INFO("backend_node: calibration from camera_info: %dx%d (%zu messages before it ignored)",
+           calibration_.width, calibration_.height, inputs_before_calibration_.load());
+  cv_.notify_all();
+}
+
+void BackendNode::arcCallback(const AckermannArc::ConstPtr& msg) {
+  ++arcs_in_;
+  Input input;
+  input.kind = Input::Kind::kArc;
+  input.arc = arcFromMsg(*msg);
+  enqueue(std::move(input));
+}
+
+bool BackendNode::enqueue(Input&& input) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!have_calibration_) {
+      ++inputs_before_calibration_;
+      return false;
+    }
+    if (queue_.size() < size_t(node_options_.max_queue_packets)) {
+      queue_.push_back(std::move(input));
+      cv_.notify_one();
+      return true;
+    }
+  }
+  ++inputs_queue_full_;
+  ROS_WARN_THROTTLE(5,
+                    "backend_node: input queue full (%d messages), the back-end cannot keep up: "
+                    "message dropped (%zu so far)",
+                    node_options_.max_queue_packets, inputs_queue_full_.load());
+  return false;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Worker: the only thread that touches the back-end.
+
+void BackendNode::workerLoop() {
+  CameraCalibration calibration;
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    cv_.wait(lock, [this] { return stop_ || have_calibration_; });
+    if (stop_) return;
+    calibration = calibration_;
+  }
+  try {
+    camera_ = std::make_unique<CameraModel>(calibration);
+    backend_ = std::make_unique<Backend>(backend_options_, *camera_, T_base_cam_);
+  } catch (const std::exception& e) {
+    ROS_ERROR("backend_node: the back-end cannot start: %s", e.what());
+    return;
+  }
+  last_status_ = ros::WallTime::now();
+  while (true) {
+    std::deque<Input> batch;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait_for(lock, std::chrono::milliseconds(100),
+                   [this] { return stop_ || !queue_.empty(); });
+      if (stop_) break;
+      batch.swap(queue_);
+    }
+    if (!batch.empty()) {
+      const ros::WallTime start = ros::WallTime::now();
+      for (Input& input : batch) {
+        try {
+          if (input.kind == Input::Kind::kEvents)
+            handleEvents(input.events);
+          else
+            handleArc(input.arc);
+        } catch (const std::exception& e) {
+          resetBackend(std::string("the back-end failed (") + e.what() + ")");
+        }
+      }
+      busy_wall_s_ += (ros::WallTime::now() - start).toSec();
+    }
+    if ((ros::WallTime::now() - last_status_).toSec() >= node_options_.status_period_s) logStatus();
+  }
+}
+
+void BackendNode::resetBackend(const std::string& why) {
+  backend_->reset();
+  reported_resets_ = backend_->stats().resets;
+  next_odom_ns_ = -1;
+  have_good_arc_ = false;
+  path_.poses.clear();
+  ROS_WARN("backend_node: %s: back-end reset, the trajectory restarts at the identity (reset %zu)",
+           why.c_str(), backend_->stats().resets);
+}
+
+void BackendNode::handleEvents(const EventVector& events) {
+  const int64_t first = events.front().t_ns;
+  if (newest_event_ns_ >= 0 && dtSec(first, newest_event_ns_) > node_options_.max_gap_s) {
+    ++gaps_;
+    resetBackend("no events for " + std::to_string(dtSec(first, newest_event_ns_)) +
+                 " s (> ~max_gap_s)");
+  }
+  const int64_t newest_before = newest_event_ns_;
+  backend_->addEvents(events);
+  if (backend_->stats().resets > reported_resets_) {
+    ++loops_;
+    reported_resets_ = backend_->stats().resets;
+    next_odom_ns_ = -1;
+    have_good_arc_ = false;
+    path_.poses.clear();
+    ROS_WARN(
+        "backend_node: event time jumped back by %.3f s (%.3f -> %.3f s; a looped bag?): "
+        "back-end reset, the trajectory restarts at the identity (reset %zu)",
+        dtSec(newest_before, first), nsToSec(newest_before), nsToSec(first),
+        backend_->stats().resets);
+    newest_event_ns_ = events.back().t_ns;
+    newest_arc_ns_ = -1;
+  } else {
+    newest_event_ns_ = std::max(newest_event_ns_, events.back().t_ns);
+  }
+  const BackendStats& s = backend_->stats();
+  if (s.events_out_of_order > reported_out_of_order_) {
+    ROS_WARN_THROTTLE(10,
+                      "backend_node: %zu events older than the newest one dropped (%zu so far)",
+                      s.events_out_of_order - reported_out_of_order_, s.events_out_of_order);
+    reported_out_of_order_ = s.events_out_of_order;
+  }
+}
+
+void BackendNode::handleArc(ArcEstimate arc) {
+  if (newest_arc_ns_ >= 0 && arc.t_end_ns <= newest_arc_ns_ &&
+      arc.t_end_ns >= newest_arc_ns_ - secToNs(backend_options_.max_backwards_jump_s)) {
+    ++arcs_stale_;
+    ROS_WARN_THROTTLE(10, "backend_node: arc ending at %.3f s is not newer than %.3f s: ignored "
+                          "(%zu so far)",
+                      nsToSec(arc.t_end_ns), nsToSec(newest_arc_ns_), arcs_stale_);
+    return;
+  }
+  if (newest_arc_ns_ >= 0 && dtSec(arc.t_start_ns, newest_arc_ns_) > node_options_.max_gap_s) {
+    ++gaps_;
+    resetBackend("no arcs for " + std::to_string(dtSec(arc.t_start_ns, newest_arc_ns_)) +
+                 " s (> ~max_gap_s)");
+  }
+  if (arc.status == ArcStatus::kLost || arc.status == ArcStatus::kLowEvents ||
+      !std::isfinite(arc.omega) || !std::isfinite(arc.v)) {
+    // No motion estimate: hold the last good one (dead reckoning through the gap).
+    ++arcs_lost_;
+    ROS_WARN_THROTTLE(10, "backend_node: arc at %.3f s is %s: the last good yaw rate and speed "
+                          "are held through it (%zu so far)",
+                      nsToSec(arc.t_ref_ns), toString(arc.status), arcs_lost_);
+    arc.omega = have_good_arc_ ? last_good_arc_.omega : 0.0;
+    arc.v = have_good_arc_ ? last_good_arc_.v : 0.0;
+    arc.status = ArcStatus::kOk;
+  } else if (arc.status == ArcStatus::kOk) {
+    last_good_arc_ = arc;
+    have_good_arc_ = true;
+  }
+  if (backend_->addArc(arc)) {
+    ++loops_;
+    reported_resets_ = backend_->stats().resets;
+    next_odom_ns_ = -1;
+    path_.poses.clear();
+    ROS_WARN("backend_node: arc time jumped back to %.3f s (from %.3f s; a looped bag?): back-end "
+             "reset, the trajectory restarts at the identity (reset %zu)",
+             nsToSec(arc.t_end_ns), nsToSec(newest_arc_ns_), backend_->stats().resets);
+  }
+  newest_arc_ns_ = arc.t_end_ns;
+  if (backend_->process()) publishRefinement();
+  publishOdometry();
+}
+
+void BackendNode::publishRefinement() {
+  ++refinements_;
+  if (!backend_->hasSpline()) return;
+  const BSpline& spline = backend_->spline();
+  trajectory_pub_.publish(splineToMsg(spline, backend_->firstFree(), frames::kOdom));
+  // The path: the refined spline, newest path_max_poses at the odometry rate.
+  const Trajectory3 traj = backend_->sampleTrajectory(node_options_.odom_rate_hz);
+  const size_t n = std::min(traj.size(), size_t(node_options_.path_max_poses));
+  path_.header.stamp = toRosTime(backend_->processedUntil());
+  path_.poses.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const auto& s = traj[traj.size() - n + i];
+    path_.poses[i].header.frame_id = frames::kOdom;
+    path_.poses[i].header.stamp = toRosTime(s.t_ns);
+    path_.poses[i].pose = poseToMsg(s.T);
+  }
+  path_pub_.publish(path_);
+}
+
+void BackendNode::publishOdometry() {
+  if (!backend_->hasSpline() && newest_arc_ns_ < 0) return;
+  const int64_t step = std::max<int64_t>(1, secToNs(1.0 / node_options_.odom_rate_hz));
+  if (next_odom_ns_ < 0) next_odom_ns_ = backend_->oldestArcTime();
+  for (; next_odom_ns_ >= 0 && next_odom_ns_ <= newest_arc_ns_; next_odom_ns_ += step) {
+    Pose3 T;
+    double v = 0.0, omega = 0.0;
+    if (!backend_->poseAt(next_odom_ns_, &T, &v, &omega)) continue;
+    nav_msgs::Odometry odom;
+    odom.header.stamp = toRosTime(next_odom_ns_);
+    odom.header.frame_id = frames::kOdom;
+    odom.child_frame_id = frames::kBase;
+    odom.pose.pose = poseToMsg(T);
+    odom.twist.twist.linear.x = v;
+    odom.twist.twist.angular.z = omega;
+    odom_pub_.publish(odom);
+    if (tf_) {
+      geometry_msgs::TransformStamped tf;
+      tf.header = odom.header;
+      tf.child_frame_id = frames::kBase;
+      tf.transform = transformToMsg(T);
+      tf_->sendTransform(tf);
+    }
+  }
+}
+
+void BackendNode::logStatus() {
+  const ros::WallTime now = ros::WallTime::now();
+  const BackendStats& s = backend_->stats();
+  ROS_INFO(
+      "backend_node: %zu refinements (%zu reverted, %zu volumes, %.2f s in the solver), %zu "
+      "arcs in (%zu lost/low held, %zu stale), %zu events in (%zu outside, %zu late), %zu "
+      "packets (%zu empty, %zu wrong size), %zu queue full, %zu gaps, %zu loops, %zu resets",
+      s.updates, s.rejected, s.volumes, s.solver_s, arcs_in_.load(), arcs_lost_, arcs_stale_,
+      s.events_in, s.events_outside + events_outside_msg_.load(), s.events_out_of_order,
+      packets_in_.load(), packets_empty_.load(), packets_wrong_size_.load(),
+      inputs_queue_full_.load(), gaps_, loops_, s.resets);
+  last_status_ = now;
+}
+
+}  // namespace vwe_vo
