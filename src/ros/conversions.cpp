@@ -1,5 +1,7 @@
 #include "vwe_vo/ros/conversions.h"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace vwe_vo {
@@ -169,6 +171,111 @@ ArcEstimate arcFromMsg(const AckermannArc& m) {
   a.num_events = m.num_events;
   a.status = m.status <= 3 ? ArcStatus(m.status) : ArcStatus::kLost;
   return a;
+}
+
+SplineTrajectory splineToMsg(const BSpline& spline, uint32_t first_free_control_point,
+                             const std::string& frame_id) {
+  SplineTrajectory msg;
+  msg.header.frame_id = frame_id;
+  msg.degree = uint8_t(spline.degree());
+  msg.knot_epoch = toRosTime(spline.epochNs());
+  msg.knots = spline.knots();
+  msg.control_x.reserve(spline.numControlPoints());
+  msg.control_y.reserve(spline.numControlPoints());
+  for (const Vec2& p : spline.controlPoints()) {
+    msg.control_x.push_back(p.x());
+    msg.control_y.push_back(p.y());
+  }
+  msg.valid_from = toRosTime(spline.epochNs() + secToNs(spline.validFrom()));
+  msg.valid_to = toRosTime(spline.epochNs() + secToNs(spline.validTo()));
+  msg.header.stamp = msg.valid_to;
+  msg.first_free_control_point = first_free_control_point;
+  return msg;
+}
+
+BSpline splineFromMsg(const SplineTrajectory& msg) {
+  auto fail = [](const std::string& m) { throw std::invalid_argument("SplineTrajectory: " + m); };
+  if (msg.degree < 1 || msg.degree > kBSplineMaxDegree)
+    fail("degree " + std::to_string(msg.degree) + " outside [1, " +
+         std::to_string(kBSplineMaxDegree) + "]");
+  if (msg.control_x.size() != msg.control_y.size())
+    fail("control_x has " + std::to_string(msg.control_x.size()) + " entries but control_y " +
+         std::to_string(msg.control_y.size()));
+  const size_t n = msg.control_x.size();
+  if (n < size_t(msg.degree) + 1)
+    fail(std::to_string(n) + " control points, a degree " + std::to_string(msg.degree) +
+         " spline needs at least " + std::to_string(msg.degree + 1));
+  if (msg.knots.size() != n + msg.degree + 1)
+    fail("knots has " + std::to_string(msg.knots.size()) + " entries, " + std::to_string(n) +
+         " control points of degree " + std::to_string(msg.degree) + " need " +
+         std::to_string(n + msg.degree + 1));
+  for (size_t i = 0; i < msg.knots.size(); ++i)
+    if (!std::isfinite(msg.knots[i])) fail("knots[" + std::to_string(i) + "] is not finite");
+  std::vector<Vec2> control_points(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(msg.control_x[i]) || !std::isfinite(msg.control_y[i]))
+      fail("control point " + std::to_string(i) + " is not finite");
+    control_points[i] = Vec2(msg.control_x[i], msg.control_y[i]);
+  }
+  try {
+    return BSpline(msg.degree, msg.knots, std::move(control_points), toNs(msg.knot_epoch));
+  } catch (const std::invalid_argument& e) {
+    fail(std::string("knots: ") + e.what());
+  }
+  return BSpline();  // not reached
+}
+
+sensor_msgs::PointCloud2 cloudToMsg(const std::vector<MapPoint>& points, const std::string& frame_id,
+                                    int64_t stamp_ns) {
+  sensor_msgs::PointCloud2 msg;
+  msg.header.frame_id = frame_id;
+  msg.header.stamp = toRosTime(std::max<int64_t>(0, stamp_ns));
+  const char* names[4] = {"x", "y", "z", "intensity"};
+  for (uint32_t i = 0; i < 4; ++i) {
+    sensor_msgs::PointField f;
+    f.name = names[i];
+    f.offset = 4 * i;
+    f.datatype = sensor_msgs::PointField::FLOAT32;
+    f.count = 1;
+    msg.fields.push_back(f);
+  }
+  msg.is_bigendian = false;  // the machines we run on; memcpy of host floats below
+  msg.point_step = 16;
+  msg.height = 1;
+  msg.is_dense = true;  // non-finite points are left out
+  msg.data.reserve(points.size() * msg.point_step);
+  uint32_t count = 0;
+  for (const MapPoint& p : points) {
+    if (!p.p.allFinite() || !std::isfinite(p.confidence)) continue;
+    const float v[4] = {p.p.x(), p.p.y(), p.p.z(), p.confidence};
+    const uint8_t* bytes = reinterpret_cast<const uint8_t*>(v);
+    msg.data.insert(msg.data.end(), bytes, bytes + sizeof(v));
+    ++count;
+  }
+  msg.width = count;
+  msg.row_step = count * msg.point_step;
+  return msg;
+}
+
+sensor_msgs::Image imageToMsg(const cv::Mat& image, const std::string& frame_id, int64_t stamp_ns) {
+  sensor_msgs::Image msg;
+  if (image.type() == CV_8UC1)
+    msg.encoding = "mono8";
+  else if (image.type() == CV_8UC3)
+    msg.encoding = "bgr8";
+  else
+    throw std::invalid_argument("imageToMsg: image type " + std::to_string(image.type()) +
+                                " is neither CV_8UC1 nor CV_8UC3");
+  msg.header.frame_id = frame_id;
+  msg.header.stamp = toRosTime(std::max<int64_t>(0, stamp_ns));
+  msg.height = uint32_t(image.rows);
+  msg.width = uint32_t(image.cols);
+  const size_t row_bytes = size_t(image.cols) * image.elemSize();
+  msg.step = uint32_t(row_bytes);
+  msg.data.resize(row_bytes * image.rows);
+  for (int y = 0; y < image.rows; ++y)
+    std::copy_n(image.ptr<uint8_t>(y), row_bytes, &msg.data[row_bytes * y]);
+  return msg;
 }
 
 }  // namespace vwe_vo

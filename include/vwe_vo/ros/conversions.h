@@ -8,10 +8,19 @@
 #include <nav_msgs/Odometry.h>
 #include <ros/time.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
 
 #include "vwe_vo/AckermannArc.h"
 #include "vwe_vo/EventArray.h"
+#include "vwe_vo/SplineTrajectory.h"
+#include "vwe_vo/core/bspline.h"
 #include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/emvs.h"
 #include "vwe_vo/core/events.h"
 #include "vwe_vo/core/frontend.h"
 #include "vwe_vo/core/math.h"
@@ -52,5 +61,19 @@ geometry_msgs::Quaternion quaternionToMsg(const Quat& q);
 
 AckermannArc arcToMsg(const ArcEstimate& arc, const std::string& frame_id);
 ArcEstimate arcFromMsg(const AckermannArc& msg);
+
+/// The spline as a SplineTrajectory (header stamp = valid_to; valid_from/valid_to = its domain).
+SplineTrajectory splineToMsg(const BSpline& spline, uint32_t first_free_control_point,
+                             const std::string& frame_id);
+/// Throws std::invalid_argument naming the bad field: degree, knot count vs control points,
+/// non-finite knots or control points, control_x/control_y sizes.
+BSpline splineFromMsg(const SplineTrajectory& msg);
+
+/// PointCloud2 of x y z float32 + intensity float32 (= MapPoint::confidence), unorganised
+/// (height 1), little-endian; non-finite points are left out.
+sensor_msgs::PointCloud2 cloudToMsg(const std::vector<MapPoint>& points, const std::string& frame_id,
+                                    int64_t stamp_ns);
+/// An 8-bit image (CV_8UC1 -> mono8, CV_8UC3 -> bgr8); throws std::invalid_argument otherwise.
+sensor_msgs::Image imageToMsg(const cv::Mat& image, const std::string& frame_id, int64_t stamp_ns);
 
 }  // namespace vwe_vo

@@ -13,6 +13,9 @@ constexpr const char* kArcs = "/vwe/arcs";               // vwe_vo/AckermannArc 
 constexpr const char* kFrontendOdom = "/vwe/frontend/odom";  // nav_msgs/Odometry, dead-reckoned
 constexpr const char* kFrontendIwe = "/vwe/frontend/iwe";    // sensor_msgs/Image, sharpened events
 constexpr const char* kTrajectory = "/vwe/trajectory";       // vwe_vo/SplineTrajectory (back-end)
+constexpr const char* kMapPoints = "/vwe/map/points";  // sensor_msgs/PointCloud2 per keyframe (odom)
+constexpr const char* kMapCloud = "/vwe/map/cloud";    // sensor_msgs/PointCloud2 global map (odom)
+constexpr const char* kMapDepth = "/vwe/map/depth";    // sensor_msgs/Image bgr8 keyframe depth
 
 }  // namespace topics
 
