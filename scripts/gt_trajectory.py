@@ -1,11 +1,13 @@
 #!/usr/bin/python3
-"""Publishes ground truth (/gt/pose, geometry_msgs/PoseStamped in odom, as in vwe_vo_sim bags) as
-a vwe_vo/SplineTrajectory on /vwe/trajectory: a degree-1 B-spline through the poses of the last
-~window_s seconds (default 20 s), at ~rate_hz (default 5 Hz). mapping_node then maps on the true
-trajectory: the map without the back-end's errors (replay.launch gt_trajectory:=true; do not run
-it together with backend_node, both would publish /vwe/trajectory)."""
+"""Ground truth in the back-end's place: turns /gt/pose (geometry_msgs/PoseStamped of base_link in
+odom, as in vwe_vo_sim bags) into a vwe_vo/SplineTrajectory on /vwe/trajectory (a degree-1
+B-spline through the poses of the last ~window_s seconds, default 20 s, at ~rate_hz, default 5 Hz)
+and, if ~publish_tf (default true), the tf odom -> base_link. mapping_node then maps on the true
+trajectory: the map without the back-end's errors (replay.launch gt_trajectory:=true; not
+together with backend_node, both would publish /vwe/trajectory and the tf)."""
 import rospy
-from geometry_msgs.msg import PoseStamped
+import tf2_ros
+from geometry_msgs.msg import PoseStamped, TransformStamped
 from vwe_vo.msg import SplineTrajectory
 
 
@@ -14,6 +16,7 @@ class GtTrajectory:
         self.window_s = float(rospy.get_param("~window_s", 20.0))
         rate_hz = float(rospy.get_param("~rate_hz", 5.0))
         self.samples = []  # (stamp, x, y), strictly increasing stamps
+        self.tf = tf2_ros.TransformBroadcaster() if rospy.get_param("~publish_tf", True) else None
         self.pub = rospy.Publisher("/vwe/trajectory", SplineTrajectory, queue_size=2)
         self.sub = rospy.Subscriber("/gt/pose", PoseStamped, self.on_pose, queue_size=200)
         self.timer = rospy.Timer(rospy.Duration(1.0 / rate_hz), self.publish)
@@ -26,6 +29,16 @@ class GtTrajectory:
             else:
                 return
         self.samples.append((msg.header.stamp, msg.pose.position.x, msg.pose.position.y))
+        if self.tf:
+            t = TransformStamped()
+            t.header.stamp = msg.header.stamp
+            t.header.frame_id = "odom"
+            t.child_frame_id = "base_link"
+            t.transform.translation.x = msg.pose.position.x
+            t.transform.translation.y = msg.pose.position.y
+            t.transform.translation.z = msg.pose.position.z
+            t.transform.rotation = msg.pose.orientation
+            self.tf.sendTransform(t)
         while (self.samples[-1][0] - self.samples[0][0]).to_sec() > self.window_s:
             self.samples.pop(0)
 

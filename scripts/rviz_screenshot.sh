@@ -6,7 +6,6 @@
 #   .build/ws/devel/lib/vwe_vo/vwe_vo_sim --sequence indoor_circle --format bag --duration 8 --out /tmp/sysbag
 #   scripts/rviz_screenshot.sh /tmp/sysbag/indoor_circle.bag /tmp/rviz.png
 # Needs xvfb and imagemagick. Ends only the processes it started (Xvfb, roscore, roslaunch).
-set -u
 bag="${1:?usage: $0 BAG [OUT.png] [WAIT_S] [replay.launch args...]}"
 out="${2:-rviz_screenshot.png}"
 wait_s="${3:-25}"
@@ -14,6 +13,7 @@ shift $(( $# < 3 ? $# : 3 ))
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck disable=SC1091
 source "$root/scripts/ros_env.sh"
+set -u  # after the ROS set-up scripts, which read unset variables
 for tool in Xvfb import roslaunch; do
   command -v "$tool" >/dev/null || { echo "rviz_screenshot: $tool not found (apt-get install xvfb imagemagick)"; exit 1; }
 done
