@@ -354,13 +354,14 @@ void MappingNode::logStatus() {
   ROS_INFO(
       "mapping_node: %zu keyframes (%zu empty), global map %zu points (%zu dropped); events: %zu "
       "voted, %zu waiting, %zu not covered by the trajectory, %zu non-finite pose, %zu late, %zu "
-      "dropped waiting; packets %zu (%zu empty, %zu wrong size, %zu queue full); trajectories "
+      "dropped waiting; packets %zu (%zu empty, %zu wrong size, %zu queue full, %zu before the "
+      "calibration); trajectories "
       "%zu (%zu refused); %zu resets; busy %.1f s",
       keyframes_, keyframes_empty_, map_->size(), map_->dropped(), counts_.voted,
       mapper_->pendingEvents(), counts_.skipped_time, counts_.skipped_nan,
       mapper_->droppedOutOfOrder(), mapper_->droppedPending(), packets_in_.load(),
       packets_empty_.load(), packets_wrong_size_.load(), packets_queue_full_.load(),
-      splines_in_.load(), splines_refused_.load(), resets_, busy_wall_s_);
+      packets_before_calibration_.load(), splines_in_.load(), splines_refused_.load(), resets_, busy_wall_s_);
   last_status_ = now;
 }
 

@@ -2,7 +2,7 @@
 // (omega = 20 deg/s, v = 0.4 m/s) and a SplineTrajectory fitted to that arc (odom = base_link at
 // the reference time). The tests run in order on one node and one continuous data clock: events
 // wait for the trajectory, then map to clouds near the true points; a spline with a NaN is
-// refused; events the trajectory does not cover are skipped and counted.
+// refused; events the trajectory does not cover are skipped and counted; a looped stream resets.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
@@ -279,6 +279,16 @@ TEST(MappingNode, EventsTheTrajectoryDoesNotCoverAreSkippedAndCounted) {
   EXPECT_TRUE(harness->logged("not covered by the trajectory skipped", rosgraph_msgs::Log::WARN,
                               30.0));
   EXPECT_GT(harness->waitForPoints(before + 1, 30.0).size(), before) << "the covered half maps";
+}
+
+TEST(MappingNode, LoopedStreamResetsAndMapsAgain) {
+  const size_t before = harness->numPoints();
+  const int64_t t_ref = secToNs(101.0);  // 4 s back: a looped bag
+  harness->streamEvents(t_ref, 2.0, 120000, 9);
+  EXPECT_TRUE(harness->logged("mapper, global map and trajectory reset", rosgraph_msgs::Log::WARN));
+  harness->publishSpline(splineToMsg(
+      harness->trueSpline(t_ref, t_ref - secToNs(1.2), t_ref + secToNs(1.6)), 0, "odom"));
+  EXPECT_GT(harness->waitForPoints(before + 2, 30.0).size(), before + 1);
 }
 
 int main(int argc, char** argv) {
