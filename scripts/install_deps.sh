@@ -26,7 +26,8 @@ else
         libtf2-ros-dev libtf2-eigen-dev libtf2-geometry-msgs-dev
         libsensor-msgs-dev libnav-msgs-dev libgeometry-msgs-dev libvisualization-msgs-dev
         libstd-msgs-dev ros-message-generation python3-rostest python3-rosbag rosbash
-        rviz ros-robot-state-publisher)
+        rviz ros-robot-state-publisher python3-geometry-msgs python3-nav-msgs
+        python3-tf2-ros)
 fi
 
 missing=()

@@ -1,7 +1,8 @@
 #include "vwe_vo/ros/conversions.h"
 
-#include <cstring>
 #include <algorithm>
+#include <cmath>
+#include <cstring>
 #include <stdexcept>
 
 namespace vwe_vo {
@@ -220,23 +221,77 @@ SplineTrajectory splineToMsg(const BSpline& spline, int first_free, const std::s
   return m;
 }
 
-BSpline splineFromMsg(const SplineTrajectory& m) {
-  if (m.control_x.size() != m.control_y.size())
-    throw std::invalid_argument("SplineTrajectory: " + std::to_string(m.control_x.size()) +
-                                " control_x but " + std::to_string(m.control_y.size()) +
-                                " control_y");
-  if (m.standstill_from.size() != m.standstill_to.size())
-    throw std::invalid_argument("SplineTrajectory: " + std::to_string(m.standstill_from.size()) +
-                                " standstill_from but " + std::to_string(m.standstill_to.size()) +
-                                " standstill_to");
-  std::vector<Vec2> P;
-  for (size_t i = 0; i < m.control_x.size(); ++i) P.emplace_back(m.control_x[i], m.control_y[i]);
-  BSpline spline(int(m.degree), m.knots, P, toNs(m.knot_epoch));  // validates the sizes
+BSpline splineFromMsg(const SplineTrajectory& msg) {
+  auto fail = [](const std::string& m) { throw std::invalid_argument("SplineTrajectory: " + m); };
+  if (msg.degree < 1 || msg.degree > kBSplineMaxDegree)
+    fail("degree " + std::to_string(msg.degree) + " outside [1, " + std::to_string(kBSplineMaxDegree) + "]");
+  if (msg.control_x.size() != msg.control_y.size())
+    fail("control_x has " + std::to_string(msg.control_x.size()) + " entries but control_y " +
+         std::to_string(msg.control_y.size()));
+  if (msg.standstill_from.size() != msg.standstill_to.size())
+    fail(std::to_string(msg.standstill_from.size()) + " standstill_from but " +
+         std::to_string(msg.standstill_to.size()) + " standstill_to");
+  const size_t n = msg.control_x.size();
+  if (n < size_t(msg.degree) + 1)
+    fail(std::to_string(n) + " control points, a degree " + std::to_string(msg.degree) +
+         " spline needs at least " + std::to_string(msg.degree + 1));
+  if (msg.knots.size() != n + msg.degree + 1)
+    fail("knots has " + std::to_string(msg.knots.size()) + " entries, " + std::to_string(n) +
+         " control points of degree " + std::to_string(msg.degree) + " need " + std::to_string(n + msg.degree + 1));
+  for (size_t i = 0; i < msg.knots.size(); ++i)
+    if (!std::isfinite(msg.knots[i])) fail("knots[" + std::to_string(i) + "] is not finite");
+  std::vector<Vec2> control_points(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(msg.control_x[i]) || !std::isfinite(msg.control_y[i]))
+      fail("control point " + std::to_string(i) + " is not finite");
+    control_points[i] = Vec2(msg.control_x[i], msg.control_y[i]);
+  }
   std::vector<BSpline::Interval> still;
-  for (size_t k = 0; k < m.standstill_from.size(); ++k)
-    still.push_back({m.standstill_from[k], m.standstill_to[k]});
-  spline.setStandstills(still);
-  return spline;
+  for (size_t k = 0; k < msg.standstill_from.size(); ++k) {
+    if (!std::isfinite(msg.standstill_from[k]) || !std::isfinite(msg.standstill_to[k]))
+      fail("standstill " + std::to_string(k) + " is not finite");
+    still.push_back({msg.standstill_from[k], msg.standstill_to[k]});
+  }
+  try {
+    BSpline spline(msg.degree, msg.knots, std::move(control_points), toNs(msg.knot_epoch));
+    spline.setStandstills(still);
+    return spline;
+  } catch (const std::invalid_argument& e) {
+    fail(std::string("knots: ") + e.what());
+  }
+  return BSpline();  // not reached
+}
+
+sensor_msgs::PointCloud2 cloudToMsg(const std::vector<MapPoint>& points, const std::string& frame_id,
+                                    int64_t stamp_ns) {
+  sensor_msgs::PointCloud2 msg;
+  msg.header.frame_id = frame_id;
+  msg.header.stamp = toRosTime(std::max<int64_t>(0, stamp_ns));
+  const char* names[4] = {"x", "y", "z", "intensity"};
+  for (uint32_t i = 0; i < 4; ++i) {
+    sensor_msgs::PointField f;
+    f.name = names[i];
+    f.offset = 4 * i;
+    f.datatype = sensor_msgs::PointField::FLOAT32;
+    f.count = 1;
+    msg.fields.push_back(f);
+  }
+  msg.is_bigendian = false;  // the machines we run on; memcpy of host floats below
+  msg.point_step = 16;
+  msg.height = 1;
+  msg.is_dense = true;  // non-finite points are left out
+  msg.data.reserve(points.size() * msg.point_step);
+  uint32_t count = 0;
+  for (const MapPoint& p : points) {
+    if (!p.p.allFinite() || !std::isfinite(p.confidence)) continue;
+    const float v[4] = {p.p.x(), p.p.y(), p.p.z(), p.confidence};
+    const uint8_t* bytes = reinterpret_cast<const uint8_t*>(v);
+    msg.data.insert(msg.data.end(), bytes, bytes + sizeof(v));
+    ++count;
+  }
+  msg.width = count;
+  msg.row_step = count * msg.point_step;
+  return msg;
 }
 
 }  // namespace vwe_vo

@@ -43,6 +43,16 @@ FrontendNode::FrontendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh
   arcs_pub_ = nh_.advertise<AckermannArc>(topics::kArcs, 100);
   odom_pub_ = nh_.advertise<nav_msgs::Odometry>(topics::kFrontendOdom, 100);
   iwe_pub_ = nh_.advertise<sensor_msgs::Image>(topics::kFrontendIwe, 2);
+  if (node_options_.publish_static_tf) {
+    // The camera mount from the config, latched once: rviz and tf users see base_link -> davis.
+    geometry_msgs::TransformStamped T;
+    T.header.stamp = ros::Time::now();
+    T.header.frame_id = frames::kBase;
+    T.child_frame_id = frames::kCamera;
+    T.transform = transformToMsg(T_base_cam_);
+    static_tf_ = std::make_unique<tf2_ros::StaticTransformBroadcaster>();
+    static_tf_->sendTransform(T);
+  }
   if (!have_calibration_)
     ROS_INFO("frontend_node: waiting for %s (no ~calibration given)",
              camera_info_sub_.getTopic().c_str());
@@ -65,6 +75,7 @@ void FrontendNode::readParameters() {
   pnh_.param("nominal_speed", o.nominal_speed_mps, -1.0);
   pnh_.param("use_odom", o.use_odom, false);
   pnh_.param("use_imu", o.use_imu, false);
+  pnh_.param("publish_static_tf", o.publish_static_tf, true);
   pnh_.param("max_queue_packets", o.max_queue_packets, 2000);
   pnh_.param("max_latency_s", o.max_latency_s, 1.0);
   pnh_.param("status_period_s", o.status_period_s, 10.0);

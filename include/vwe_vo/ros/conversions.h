@@ -9,14 +9,18 @@
 #include <ros/time.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
 
 #include <opencv2/core.hpp>
+#include <string>
+#include <vector>
 
 #include "vwe_vo/AckermannArc.h"
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/SplineTrajectory.h"
 #include "vwe_vo/core/bspline.h"
 #include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/emvs.h"
 #include "vwe_vo/core/events.h"
 #include "vwe_vo/core/frontend.h"
 #include "vwe_vo/core/math.h"
@@ -68,5 +72,10 @@ ArcEstimate arcFromMsg(const AckermannArc& msg);
 SplineTrajectory splineToMsg(const BSpline& spline, int first_free, const std::string& frame_id);
 /// Throws std::invalid_argument naming what is inconsistent (sizes, knots, standstills).
 BSpline splineFromMsg(const SplineTrajectory& msg);
+
+/// PointCloud2 of x y z float32 + intensity float32 (= MapPoint::confidence), unorganised
+/// (height 1), little-endian; non-finite points are left out.
+sensor_msgs::PointCloud2 cloudToMsg(const std::vector<MapPoint>& points, const std::string& frame_id,
+                                    int64_t stamp_ns);
 
 }  // namespace vwe_vo

@@ -8,6 +8,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Imu.h>
+#include <tf2_ros/static_transform_broadcaster.h>
 
 #include <atomic>
 #include <condition_variable>
@@ -35,6 +36,7 @@ struct FrontendNodeOptions {
   double nominal_speed_mps = -1;  // ~nominal_speed: overrides the config when >= 0 [m/s]
   bool use_odom = false;          // ~use_odom: speed (and standstill) from /odom
   bool use_imu = false;           // ~use_imu: gyro yaw-rate prior from /dvs/imu
+  bool publish_static_tf = true;  // ~publish_static_tf: static tf base_link -> davis (T_base_cam)
   int max_queue_packets = 2000;   // ~max_queue_packets: bound of the input queue [messages]
   double max_latency_s = 1.0;     // ~max_latency_s: backlog beyond this drops whole windows [s]
   double status_period_s = 10.0;  // ~status_period_s: period of the one-line status [s]
@@ -83,6 +85,7 @@ class FrontendNode {
   ros::NodeHandle nh_, pnh_;
   ros::Subscriber events_sub_, camera_info_sub_, odom_sub_, imu_sub_, trajectory_sub_;
   ros::Publisher arcs_pub_, odom_pub_, iwe_pub_;
+  std::unique_ptr<tf2_ros::StaticTransformBroadcaster> static_tf_;
 
   FrontendNodeOptions node_options_;
   FrontendOptions frontend_options_;

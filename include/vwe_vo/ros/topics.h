@@ -18,6 +18,9 @@ constexpr const char* kBaselineOdom = "/vwe/baseline/odom";  // nav_msgs/Odometr
 constexpr const char* kBaselineTracks = "/vwe/baseline/tracks";  // sensor_msgs/Image, KLT tracks
 constexpr const char* kBackendOdom = "/vwe/odom";            // nav_msgs/Odometry on the spline
 constexpr const char* kPath = "/vwe/path";                   // nav_msgs/Path, the refined spline
+constexpr const char* kMapPoints = "/vwe/map/points";  // sensor_msgs/PointCloud2 per keyframe (odom)
+constexpr const char* kMapCloud = "/vwe/map/cloud";    // sensor_msgs/PointCloud2 global map (odom)
+constexpr const char* kMapDepth = "/vwe/map/depth";    // sensor_msgs/Image bgr8 keyframe depth
 
 }  // namespace topics
 

@@ -1,0 +1,105 @@
+// mapping_node: EMVS mapping on the back-end's trajectory, live or from a bag. Callbacks only
+// validate, convert and enqueue (events into a bounded queue; the newest SplineTrajectory replaces
+// the previous one); one worker thread runs vwe_vo::EmvsMapper on the events the spline covers and
+// publishes a cloud and a colour-coded depth image per keyframe and, throttled, the global map.
+#pragma once
+
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "vwe_vo/EventArray.h"
+#include "vwe_vo/SplineTrajectory.h"
+#include "vwe_vo/core/bspline.h"
+#include "vwe_vo/core/camera.h"
+#include "vwe_vo/core/emvs.h"
+#include "vwe_vo/core/math.h"
+
+namespace vwe_vo {
+
+/// Everything the node reads from the parameter server, once, at start-up.
+struct MappingNodeOptions {
+  std::string config_path;           // ~config: pipeline YAML (its mapping: section, T_base_cam)
+  std::string calibration_path;      // ~calibration: CameraInfo-style YAML; empty: camera_info
+  double cloud_period_s = 2.0;       // ~cloud_period_s: minimum period of /vwe/map/cloud [s]
+  double trajectory_margin_s = 0.2;  // ~trajectory_margin_s: map events older than valid_to - this [s]
+  double keyframe_timeout_s = 3.0;   // ~keyframe_timeout_s: close the open keyframe after this
+                                     // long without events (end of a bag) [wall s]; 0: never
+  double max_backwards_jump_s = 0.5;  // ~max_backwards_jump_s: events further back reset [s]
+  int max_queue_packets = 2000;       // ~max_queue_packets: bound of the input queue [messages]
+  double status_period_s = 10.0;      // ~status_period_s: period of the one-line status [s]
+  void validate() const;              // throws std::invalid_argument naming the parameter
+};
+
+class MappingNode {
+ public:
+  /// Reads the parameters and the configuration (throws std::exception on unusable ones),
+  /// subscribes, advertises and starts the worker.
+  MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh);
+  /// Stops and joins the worker.
+  ~MappingNode();
+  MappingNode(const MappingNode&) = delete;
+  MappingNode& operator=(const MappingNode&) = delete;
+
+ private:
+  void readParameters();
+  void eventsCallback(const EventArray::ConstPtr& msg);
+  void cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg);
+  void trajectoryCallback(const SplineTrajectory::ConstPtr& msg);
+
+  void workerLoop();
+  void handleEvents(const EventVector& events);
+  void mapCovered();
+  void handleKeyframe(const EmvsKeyframe& keyframe);
+  void publishCloud();
+  void logStatus();
+
+  ros::NodeHandle nh_, pnh_;
+  ros::Subscriber events_sub_, camera_info_sub_, trajectory_sub_;
+  ros::Publisher points_pub_, cloud_pub_, depth_pub_;
+
+  MappingNodeOptions node_options_;
+  EmvsOptions emvs_options_;
+  GlobalMapOptions global_map_options_;
+  Pose3 T_base_cam_ = Pose3::Identity();
+
+  // mutex_ guards everything up to the next blank line (queue, spline, calibration, stop flag).
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<EventVector> queue_;
+  std::shared_ptr<const BSpline> new_spline_;  // newest trajectory not yet taken by the worker
+  bool have_calibration_ = false;
+  CameraCalibration calibration_;
+  bool stop_ = false;
+
+  // Counted by the callbacks (read by the status line).
+  std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0},
+      packets_queue_full_{0}, packets_before_calibration_{0}, events_outside_msg_{0},
+      camera_info_refused_{0}, splines_in_{0}, splines_refused_{0};
+
+  // Owned by the worker thread.
+  std::unique_ptr<CameraModel> camera_;
+  std::unique_ptr<EmvsMapper> mapper_;
+  std::unique_ptr<GlobalMap> map_;
+  std::shared_ptr<const BSpline> spline_;  // the trajectory in use
+  int64_t newest_event_ns_ = -1;
+  size_t resets_ = 0, keyframes_ = 0, keyframes_empty_ = 0;
+  EmvsCounts counts_;  // summed over keyframes
+  size_t reported_skipped_time_ = 0, reported_skipped_nan_ = 0, reported_out_of_order_ = 0,
+         reported_dropped_pending_ = 0;
+  bool map_changed_ = false;
+  ros::WallTime last_events_wall_, last_cloud_wall_, last_status_;
+  double busy_wall_s_ = 0.0;
+
+  std::thread worker_;
+};
+
+}  // namespace vwe_vo
