@@ -18,10 +18,10 @@ for s in "${seqs[@]}"; do
   d="$out/$s"
   mkdir -p "$d"
   echo "[demo] 2/4 $s: pipeline (speed from the bag's /odom, as on a robot with wheel odometry)"
-  "$bin/vwe_vo_offline" --bag "$seq_dir/$s.bag" --use-odom --out "$d"
+  "$bin/vwe_vo_offline" --bag "$seq_dir/$s.bag" --use-odom --baseline --depth-png --out "$d"
   echo "[demo] 3/4 $s: evaluation"
   cp "$seq_dir/groundtruth.txt" "$d/groundtruth.tum"
-  for m in frontend backend; do
+  for m in frontend backend baseline; do
     [ -f "$d/$m.tum" ] || continue
     arcs=()
     [ "$m" = frontend ] && arcs=(--arcs "$d/arcs.csv")
@@ -29,11 +29,14 @@ for s in "${seqs[@]}"; do
         --series "$d/errors_$m.csv" "${arcs[@]}" > "$d/eval_$m.txt"
   done
   est_args=()
-  for m in frontend backend; do [ -f "$d/$m.tum" ] && est_args+=(--est "$m=$d/$m.tum"); done
+  for m in frontend backend baseline; do [ -f "$d/$m.tum" ] && est_args+=(--est "$m=$d/$m.tum"); done
   series=()
   [ -f "$d/errors_backend.csv" ] && series=(--series "$d/errors_backend.csv") || series=(--series "$d/errors_frontend.csv")
   /usr/bin/python3 "$root/scripts/plot_trajectory.py" --gt "$d/groundtruth.tum" "${est_args[@]}" "${series[@]}" --out "$d/$s"
   /usr/bin/python3 "$root/scripts/plot_arcs.py" --arcs "$d/arcs.csv" --gt "$d/groundtruth.tum" --out "$d/${s}_arcs.png"
+  if [ -f "$d/map.ply" ]; then
+    /usr/bin/python3 "$root/scripts/plot_map.py" "$d/map.ply" "$d/${s}_map" --tum "$d/groundtruth.tum"
+  fi
 done
 
 echo "[demo] 4/4 metrics table"

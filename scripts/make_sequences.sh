@@ -11,7 +11,7 @@ set +u  # ROS's setup scripts read unset variables
 source "$ROOT/scripts/ros_env.sh"
 set -u
 BIN="${VWE_WS:-$ROOT/.build/ws}/devel/lib/vwe_vo/vwe_vo_sim"
-VERSION="sim-v2"   # bump when the simulator's output changes
+VERSION="sim-v3"   # bump when the simulator's output changes
 FORMAT="${FORMAT:-bag}"
 OUT="$ROOT/out/sequences"
 if [ ! -x "$BIN" ]; then echo "make_sequences: $BIN not built (run make build)" >&2; exit 1; fi
@@ -33,6 +33,6 @@ for name in "${names[@]}"; do
   echo "[make_sequences] $name: generating into $dir"
   rm -rf "$dir"
   mkdir -p "$dir"
-  "$BIN" --sequence "$name" --format "$FORMAT" --seed "$seed" --out "$dir" --depth-times 1.0,5.0 2> >(tee "$dir/sim.log" >&2)
+  "$BIN" --sequence "$name" --format "$FORMAT" --seed "$seed" --out "$dir" --images --depth-times 1.0,5.0 2> >(tee "$dir/sim.log" >&2)
   echo "$want" > "$stamp"
 done

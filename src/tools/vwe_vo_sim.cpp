@@ -351,7 +351,7 @@ int run(const Args& args) {
           char name[64];
           std::snprintf(name, sizeof(name), "images/frame_%08d.png", n_frames);
           if (!cv::imwrite(args.out + "/" + name, f.image)) throw std::runtime_error(std::string("cannot write ") + name);
-          images_txt << fmt("%.9f", nsToSec(f.t_ns)) << " " << name << "\n";
+          images_txt << fmt("%.9f", nsToSec(f.t_ns + kEpochNs)) << " " << name << "\n";
         }
         ++n_frames;
       }
