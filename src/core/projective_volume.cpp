@@ -6,6 +6,9 @@
 #include <stdexcept>
 
 namespace vwe_vo {
+namespace {
+constexpr int kPlaneGroup = 4;  // planes voted per pass over a large ray array
+}  // namespace
 
 void VolumeOptions::validate() const {
   auto fail = [](const std::string& m) { throw std::invalid_argument("VolumeOptions: " + m); };
@@ -75,39 +78,50 @@ size_t ProjectiveVolume::vote(const std::vector<VolumeRay>& rays) {
   // Either way the cost is bounded by the votes, never more than the grid.
   const size_t plane_voxels = size_t(width_) * height_;
   const bool scan_planes = 4 * rays.size() >= plane_voxels;
-  pool_.run(L, [&](int l, int t) {
+  // Many rays (the DSI, big volumes): the ray array no longer fits in cache and streaming it
+  // once per plane makes voting memory-bound; each pass over the rays serves a group of planes.
+  const int group = scan_planes ? kPlaneGroup : 1;
+  const int num_groups = (L + group - 1) / group;
+  pool_.run(num_groups, [&](int chunk, int t) {
+    const int l0 = chunk * group, l1 = std::min(L, l0 + group);
     double s = 0.0, q = 0.0;
     size_t n = 0;
     if (scan_planes) {
       for (const VolumeRay& r : rays) {
-        forEachVote(r, l, [&](size_t idx, float ax, float ay) {
-          g[idx] += (1 - ax) * (1 - ay);
-          g[idx + 1] += ax * (1 - ay);
-          g[idx + W] += (1 - ax) * ay;
-          g[idx + W + 1] += ax * ay;
-          ++n;
-        });
+        for (int l = l0; l < l1; ++l) {
+          forEachVote(r, l, [&](size_t idx, float ax, float ay) {
+            g[idx] += (1 - ax) * (1 - ay);
+            g[idx + 1] += ax * (1 - ay);
+            g[idx + W] += (1 - ax) * ay;
+            g[idx + W + 1] += ax * ay;
+            ++n;
+          });
+        }
       }
-      const float* plane = g + size_t(l) * plane_voxels;
-      float qf[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-      size_t i = 0;
-      for (; i + 8 <= plane_voxels; i += 8)
-        for (int k = 0; k < 8; ++k) qf[k] += plane[i + k] * plane[i + k];
-      for (; i < plane_voxels; ++i) q += double(plane[i]) * plane[i];
-      for (int k = 0; k < 8; ++k) q += qf[k];
+      for (int l = l0; l < l1; ++l) {
+        const float* plane = g + size_t(l) * plane_voxels;
+        float qf[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+        size_t i = 0;
+        for (; i + 8 <= plane_voxels; i += 8)
+          for (int k = 0; k < 8; ++k) qf[k] += plane[i + k] * plane[i + k];
+        for (; i < plane_voxels; ++i) q += double(plane[i]) * plane[i];
+        for (int k = 0; k < 8; ++k) q += qf[k];
+      }
       s = double(n);
     } else {
-      for (const VolumeRay& r : rays) {
-        forEachVote(r, l, [&](size_t idx, float ax, float ay) {
-          const float w[4] = {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay};
-          const size_t id[4] = {idx, idx + 1, idx + W, idx + W + 1};
-          for (int c = 0; c < 4; ++c) {
-            const float old = g[id[c]];
-            g[id[c]] = old + w[c];
-            q += double(w[c]) * (2.0 * double(old) + double(w[c]));
-          }
-          ++n;
-        });
+      for (int l = l0; l < l1; ++l) {
+        for (const VolumeRay& r : rays) {
+          forEachVote(r, l, [&](size_t idx, float ax, float ay) {
+            const float w[4] = {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay};
+            const size_t id[4] = {idx, idx + 1, idx + W, idx + W + 1};
+            for (int c = 0; c < 4; ++c) {
+              const float old = g[id[c]];
+              g[id[c]] = old + w[c];
+              q += double(w[c]) * (2.0 * double(old) + double(w[c]));
+            }
+            ++n;
+          });
+        }
       }
       s = double(n);
     }
