@@ -10,6 +10,7 @@
 #include "vwe_vo/SplineTrajectory.h"
 #include "vwe_vo/core/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
+#include "vwe_vo/ros/event_input.h"
 #include "vwe_vo/ros/topics.h"
 
 namespace vwe_vo {
@@ -86,12 +87,6 @@ void BackendNode::readParameters() {
 
 void BackendNode::eventsCallback(const EventArray::ConstPtr& msg) {
   ++packets_in_;
-  if (msg->events.empty()) {
-    ++packets_empty_;
-    ROS_WARN_THROTTLE(10, "backend_node: empty EventArray ignored (%zu so far)",
-                      packets_empty_.load());
-    return;
-  }
   int width = 0, height = 0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -102,23 +97,10 @@ void BackendNode::eventsCallback(const EventArray::ConstPtr& msg) {
     width = calibration_.width;
     height = calibration_.height;
   }
-  if (int(msg->width) != width || int(msg->height) != height) {
-    ++packets_wrong_size_;
-    ROS_ERROR_THROTTLE(5,
-                       "backend_node: EventArray is %ux%u but the calibration is %dx%d: packet "
-                       "refused (%zu so far)",
-                       msg->width, msg->height, width, height, packets_wrong_size_.load());
-    return;
-  }
   Input input;
-  EventConversionStats stats;
-  eventsFromMsg(*msg, &input.events, &stats);
-  if (stats.dropped > 0) {
-    events_outside_msg_ += stats.dropped;
-    ROS_WARN_THROTTLE(10, "backend_node: %zu events outside the %dx%d sensor dropped (%zu so far)",
-                      stats.dropped, width, height, events_outside_msg_.load());
-  }
-  if (input.events.empty()) return;
+  if (!acceptEventPacket(*msg, width, height, "backend_node", {packets_empty_, packets_wrong_size_, events_outside_msg_},
+                         &input.events))
+    return;
   enqueue(std::move(input));
 }
 
