@@ -106,31 +106,7 @@ void BackendNode::eventsCallback(const EventArray::ConstPtr& msg) {
 
 void BackendNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
-  if (have_calibration_) {
-    if (int(msg->width) != calibration_.width || int(msg->height) != calibration_.height) {
-      ++camera_info_refused_;
-      ROS_ERROR_THROTTLE(10,
-                         "backend_node: camera_info is %ux%u but the calibration in use is %dx%d: "
-                         "refused, keeping the first (%zu refused so far)",
-                         msg->width, msg->height, calibration_.width, calibration_.height,
-                         camera_info_refused_.load());
-    }
-    return;
-  }
-  try {
-    calibration_ = calibrationFromMsg(*msg);
-  } catch (const std::invalid_argument& e) {
-    ++camera_info_refused_;
-    ROS_WARN_THROTTLE(5,
-                      "backend_node: camera_info refused: %s; still waiting for a valid one (%zu "
-                      "refused so far)",
-                      e.what(), camera_info_refused_.load());
-    return;
-  }
-  have_calibration_ = true;
-  ROS_INFO("backend_node: calibration from camera_info: %dx%d (%zu messages before it ignored)",
-           calibration_.width, calibration_.height, inputs_before_calibration_.load());
-  cv_.notify_all();
+  if (acceptCameraInfo(*msg, "backend_node", &have_calibration_, &calibration_, camera_info_refused_)) cv_.notify_all();
 }
 
 void BackendNode::arcCallback(const AckermannArc::ConstPtr& msg) {

@@ -30,4 +30,30 @@ bool acceptEventPacket(const EventArray& msg, int width, int height, const char*
   return !events->empty();
 }
 
+bool acceptCameraInfo(const sensor_msgs::CameraInfo& msg, const char* node, bool* have_calibration,
+                      CameraCalibration* calibration, std::atomic<size_t>& refused) {
+  if (*have_calibration) {
+    if (int(msg.width) != calibration->width || int(msg.height) != calibration->height) {
+      ++refused;
+      ROS_ERROR_THROTTLE(10,
+                         "%s: camera_info is %ux%u but the calibration in use is %dx%d: refused, keeping the "
+                         "first (%zu refused so far)",
+                         node, msg.width, msg.height, calibration->width, calibration->height, refused.load());
+    }
+    return false;
+  }
+  try {
+    *calibration = calibrationFromMsg(msg);
+  } catch (const std::invalid_argument& e) {
+    ++refused;
+    ROS_WARN_THROTTLE(5, "%s: camera_info refused: %s; still waiting for a valid one (%zu refused so far)", node,
+                      e.what(), refused.load());
+    return false;
+  }
+  *have_calibration = true;
+  ROS_INFO("%s: calibration from camera_info: %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f", node, calibration->width,
+           calibration->height, calibration->fx, calibration->fy, calibration->cx, calibration->cy);
+  return true;
+}
+
 }  // namespace vwe_vo

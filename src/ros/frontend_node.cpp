@@ -141,37 +141,7 @@ void FrontendNode::eventsCallback(const EventArray::ConstPtr& msg) {
 
 void FrontendNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
-  if (have_calibration_) {
-    if (int(msg->width) != calibration_.width || int(msg->height) != calibration_.height) {
-      ++camera_info_refused_;
-      ROS_ERROR_THROTTLE(
-          10,
-          "frontend_node: camera_info is %ux%u but the calibration in use is %dx%d: refused, "
-          "keeping the first (%zu refused so far)",
-          msg->width, msg->height, calibration_.width, calibration_.height,
-          camera_info_refused_.load());
-    }
-    return;
-  }
-  CameraCalibration calibration;
-  try {
-    calibration = calibrationFromMsg(*msg);
-  } catch (const std::invalid_argument& e) {
-    ++camera_info_refused_;
-    ROS_WARN_THROTTLE(5,
-                      "frontend_node: camera_info refused: %s; still waiting for a valid one (%zu "
-                      "refused so far)",
-                      e.what(), camera_info_refused_.load());
-    return;
-  }
-  calibration_ = calibration;
-  have_calibration_ = true;
-  ROS_INFO(
-      "frontend_node: calibration from camera_info: %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f "
-      "(%zu messages before it ignored)",
-      calibration.width, calibration.height, calibration.fx, calibration.fy, calibration.cx,
-      calibration.cy, inputs_before_calibration_.load());
-  cv_.notify_all();
+  if (acceptCameraInfo(*msg, "frontend_node", &have_calibration_, &calibration_, camera_info_refused_)) cv_.notify_all();
 }
 
 void FrontendNode::odomCallback(const nav_msgs::Odometry::ConstPtr& msg) {

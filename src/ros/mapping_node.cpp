@@ -127,32 +127,7 @@ void MappingNode::eventsCallback(const EventArray::ConstPtr& msg) {
 
 void MappingNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
-  if (have_calibration_) {
-    if (int(msg->width) != calibration_.width || int(msg->height) != calibration_.height) {
-      ++camera_info_refused_;
-      ROS_ERROR_THROTTLE(10,
-                         "mapping_node: camera_info is %ux%u but the calibration in use is %dx%d: "
-                         "refused, keeping the first (%zu refused so far)",
-                         msg->width, msg->height, calibration_.width, calibration_.height,
-                         camera_info_refused_.load());
-    }
-    return;
-  }
-  try {
-    calibration_ = calibrationFromMsg(*msg);
-  } catch (const std::invalid_argument& e) {
-    ++camera_info_refused_;
-    ROS_WARN_THROTTLE(5,
-                      "mapping_node: camera_info refused: %s; still waiting for a valid one (%zu "
-                      "refused so far)",
-                      e.what(), camera_info_refused_.load());
-    return;
-  }
-  have_calibration_ = true;
-  ROS_INFO("mapping_node: calibration from camera_info: %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f",
-           calibration_.width, calibration_.height, calibration_.fx, calibration_.fy,
-           calibration_.cx, calibration_.cy);
-  cv_.notify_all();
+  if (acceptCameraInfo(*msg, "mapping_node", &have_calibration_, &calibration_, camera_info_refused_)) cv_.notify_all();
 }
 
 void MappingNode::trajectoryCallback(const SplineTrajectory::ConstPtr& msg) {

@@ -1,11 +1,15 @@
-// The event input every node shares: one EventArray checked against the calibration's size and
-// converted, with what is refused or dropped counted and warned about (throttled).
+// The sensor input every node shares: the calibration from camera_info, and one EventArray
+// checked against the calibration's size and converted; what is refused or dropped is counted
+// and warned about (throttled).
 #pragma once
 
 #include <atomic>
 #include <cstddef>
 
+#include <sensor_msgs/CameraInfo.h>
+
 #include "vwe_vo/EventArray.h"
+#include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/events.h"
 
 namespace vwe_vo {
@@ -22,5 +26,12 @@ struct EventPacketCounters {
 /// and both sizes. Returns false when nothing is left to process.
 bool acceptEventPacket(const EventArray& msg, int width, int height, const char* node,
                        const EventPacketCounters& counters, EventVector* events);
+
+/// The first valid camera_info becomes *calibration (sets *have_calibration, logs it, returns
+/// true). Before that an invalid one is refused and the node keeps waiting; afterwards one of
+/// another size is refused and the first is kept. Refusals are counted in `refused` and warned
+/// about, naming `node`. Call it holding the lock that guards the calibration.
+bool acceptCameraInfo(const sensor_msgs::CameraInfo& msg, const char* node, bool* have_calibration,
+                      CameraCalibration* calibration, std::atomic<size_t>& refused);
 
 }  // namespace vwe_vo
