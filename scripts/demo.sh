@@ -17,8 +17,12 @@ for s in "${seqs[@]}"; do
   seq_dir="$root/out/sequences/$s"
   d="$out/$s"
   mkdir -p "$d"
-  echo "[demo] 2/4 $s: pipeline (speed from the bag's /odom, as on a robot with wheel odometry)"
-  "$bin/vwe_vo_offline" --bag "$seq_dir/$s.bag" --use-odom --baseline --depth-png --out "$d"
+  # The street sequences are simulated with a car mount (config/car.yaml), the others with the
+  # turtlebot mount of config/vwe_vo.yaml: the pipeline must use the extrinsics of the recording.
+  cfg="$root/config/vwe_vo.yaml"
+  case "$s" in street*) cfg="$root/config/car.yaml" ;; esac
+  echo "[demo] 2/4 $s: pipeline with $(basename "$cfg") (speed from the bag's /odom, as on a robot with wheel odometry)"
+  "$bin/vwe_vo_offline" --bag "$seq_dir/$s.bag" --config "$cfg" --use-odom --baseline --depth-png --out "$d"
   echo "[demo] 3/4 $s: evaluation"
   cp "$seq_dir/groundtruth.txt" "$d/groundtruth.tum"
   for m in frontend backend baseline; do

@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "vwe_vo/core/options_yaml.h"
+#include "vwe_vo/core/sim/sequences.h"
 
 using namespace vwe_vo;
 
@@ -38,7 +39,19 @@ TEST(OptionsYaml, EveryShippedConfigLoads) {
     }
   }
   closedir(d);
-  EXPECT_GE(pipeline_configs, 1);
+  EXPECT_GE(pipeline_configs, 2);
+}
+
+// The shipped configurations carry the mounts the simulator records with: the turtlebot one
+// for the indoor sequences, the car one for the street (a mismatch costs ~10 deg/s).
+TEST(OptionsYaml, ShippedMountsMatchTheSimulatedSequences) {
+  const std::string dir = std::string(VWE_VO_SOURCE_DIR) + "/config/";
+  const PipelineConfig bot = loadPipelineConfig(dir + "vwe_vo.yaml");
+  const PipelineConfig car = loadPipelineConfig(dir + "car.yaml");
+  EXPECT_TRUE(bot.T_base_cam.isApprox(sim::findSequence("indoor_long").T_base_cam, 1e-9));
+  EXPECT_TRUE(car.T_base_cam.isApprox(sim::findSequence("street_long").T_base_cam, 1e-9));
+  EXPECT_FALSE(car.T_base_cam.isApprox(bot.T_base_cam, 1e-3));
+  EXPECT_GT(car.frontend.nominal_speed_mps, 10 * bot.frontend.nominal_speed_mps);
 }
 
 TEST(OptionsYaml, ValuesOverrideDefaultsAndNestedSectionsWork) {
