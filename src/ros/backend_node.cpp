@@ -11,6 +11,7 @@
 #include "vwe_vo/core/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/event_input.h"
+#include "vwe_vo/ros/process_priority.h"
 #include "vwe_vo/ros/topics.h"
 
 namespace vwe_vo {
@@ -22,6 +23,7 @@ void BackendNodeOptions::validate() const {
   if (!(max_gap_s > 0)) fail("~max_gap_s must be positive [s]");
   if (path_max_poses < 1) fail("~path_max_poses must be at least 1");
   if (!(status_period_s > 0)) fail("~status_period_s must be positive [s]");
+  if (nice < 0 || nice > 19) fail("~nice must be in [0, 19]");
 }
 
 BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
@@ -38,6 +40,7 @@ BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
   if (!have_calibration_)
     ROS_INFO("backend_node: waiting for %s (no ~calibration given)",
              camera_info_sub_.getTopic().c_str());
+  lowerCpuPriority(node_options_.nice, "backend_node");  // before the worker: it inherits it
   worker_ = std::thread(&BackendNode::workerLoop, this);
 }
 
@@ -60,6 +63,7 @@ void BackendNode::readParameters() {
   pnh_.param("path_max_poses", o.path_max_poses, 2000);
   pnh_.param("status_period_s", o.status_period_s, 10.0);
   pnh_.param("publish_tf", o.publish_tf, true);
+  pnh_.param("nice", o.nice, 0);
   o.validate();
 
   const PipelineConfig config = loadPipelineConfig(o.config_path);
@@ -168,15 +172,23 @@ void BackendNode::workerLoop() {
     }
     if (!batch.empty()) {
       const ros::WallTime start = ros::WallTime::now();
+      bool arcs = false;
       for (Input& input : batch) {
         try {
-          if (input.kind == Input::Kind::kEvents)
+          if (input.kind == Input::Kind::kEvents) {
             handleEvents(input.events);
-          else
+          } else {
             handleArc(input.arc);
+            arcs = true;
+          }
         } catch (const std::exception& e) {
           resetBackend(std::string("the back-end failed (") + e.what() + ")");
         }
+      }
+      try {
+        if (arcs) odometryAndRefinement();
+      } catch (const std::exception& e) {
+        resetBackend(std::string("the back-end failed (") + e.what() + ")");
       }
       busy_wall_s_ += (ros::WallTime::now() - start).toSec();
     }
@@ -266,8 +278,23 @@ void BackendNode::handleArc(ArcEstimate arc) {
              nsToSec(arc.t_end_ns), nsToSec(newest_arc_ns_), backend_->stats().resets);
   }
   newest_arc_ns_ = arc.t_end_ns;
-  if (backend_->process()) publishRefinement();
+}
+
+void BackendNode::odometryAndRefinement() {
+  // The odometry of the new arcs goes out first: it does not wait for the solver.
   publishOdometry();
+  // One refinement covers every arc of the batch. A back-end that fell behind (a short CPU)
+  // refines less often over longer spans instead of queueing refinements it cannot afford,
+  // and then input it would have to drop.
+  const int64_t from = backend_->hasSpline() ? backend_->processedUntil() : backend_->oldestArcTime();
+  if (!backend_->process()) return;
+  const double intervals = dtSec(backend_->processedUntil(), from) / backend_options_.update_interval_s;
+  if (intervals >= 2.0) {
+    refinements_merged_ += size_t(intervals) - 1;
+    ROS_WARN_THROTTLE(10, "backend_node: behind: one refinement over %.1f s of arcs (%zu intervals merged so far)",
+                      dtSec(backend_->processedUntil(), from), refinements_merged_);
+  }
+  publishRefinement();
 }
 
 void BackendNode::publishRefinement() {
@@ -321,11 +348,12 @@ void BackendNode::logStatus() {
   ROS_INFO(
       "backend_node: %zu refinements (%zu reverted, %zu volumes, %.2f s in the solver), %zu "
       "arcs in (%zu lost/low held, %zu stale), %zu events in (%zu outside, %zu late), %zu "
-      "packets (%zu empty, %zu wrong size), %zu queue full, %zu gaps, %zu loops, %zu resets",
+      "packets (%zu empty, %zu wrong size), %zu queue full, %zu gaps, %zu loops, %zu resets, "
+      "%zu intervals merged behind",
       s.updates, s.rejected, s.volumes, s.solver_s, arcs_in_.load(), arcs_lost_, arcs_stale_,
       s.events_in, s.events_outside + events_outside_msg_.load(), s.events_out_of_order,
       packets_in_.load(), packets_empty_.load(), packets_wrong_size_.load(),
-      inputs_queue_full_.load(), gaps_, loops_, s.resets);
+      inputs_queue_full_.load(), gaps_, loops_, s.resets, refinements_merged_);
   last_status_ = now;
 }
 

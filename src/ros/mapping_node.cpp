@@ -11,6 +11,7 @@
 #include "vwe_vo/core/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/event_input.h"
+#include "vwe_vo/ros/process_priority.h"
 #include "vwe_vo/ros/topics.h"
 
 namespace vwe_vo {
@@ -24,6 +25,7 @@ void MappingNodeOptions::validate() const {
   if (!(max_backwards_jump_s > 0)) fail("~max_backwards_jump_s must be positive [s]");
   if (max_queue_packets < 1) fail("~max_queue_packets must be at least 1");
   if (!(status_period_s > 0)) fail("~status_period_s must be positive [s]");
+  if (nice < 0 || nice > 19) fail("~nice must be in [0, 19]");
 }
 
 MappingNode::MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
@@ -38,6 +40,7 @@ MappingNode::MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
   if (!have_calibration_)
     ROS_INFO("mapping_node: waiting for %s (no ~calibration given)",
              camera_info_sub_.getTopic().c_str());
+  lowerCpuPriority(node_options_.nice, "mapping_node");  // before the worker: it inherits it
   worker_ = std::thread(&MappingNode::workerLoop, this);
 }
 
@@ -60,6 +63,7 @@ void MappingNode::readParameters() {
   pnh_.param("max_backwards_jump_s", o.max_backwards_jump_s, 0.5);
   pnh_.param("max_queue_packets", o.max_queue_packets, 2000);
   pnh_.param("status_period_s", o.status_period_s, 10.0);
+  pnh_.param("nice", o.nice, 0);
   o.validate();
 
   const PipelineConfig config = loadPipelineConfig(o.config_path);

@@ -40,6 +40,7 @@ struct BackendNodeOptions {
   int path_max_poses = 2000;      // ~path_max_poses: newest poses kept in /vwe/path
   double status_period_s = 10.0;  // ~status_period_s: period of the one-line status [s]
   bool publish_tf = true;         // ~publish_tf: broadcast odom -> base_link
+  int nice = 0;                   // ~nice: CPU priority (0..19; higher yields to the front-end)
   void validate() const;          // throws std::invalid_argument naming the parameter
 };
 
@@ -69,6 +70,8 @@ class BackendNode {
   void workerLoop();
   void handleEvents(const EventVector& events);
   void handleArc(ArcEstimate arc);
+  /// After a batch with arcs: publishes their odometry, then refines once over all of them.
+  void odometryAndRefinement();
   /// Resets the back-end and what was published from it (the odometry restarts at identity).
   void resetBackend(const std::string& why);
   void publishRefinement();
@@ -105,6 +108,7 @@ class BackendNode {
   ArcEstimate last_good_arc_;
   bool have_good_arc_ = false;
   size_t arcs_lost_ = 0, arcs_stale_ = 0, gaps_ = 0, loops_ = 0, refinements_ = 0;
+  size_t refinements_merged_ = 0;  // update intervals folded into a later refinement (behind)
   size_t reported_resets_ = 0, reported_out_of_order_ = 0;
   nav_msgs::Path path_;
   double busy_wall_s_ = 0.0;

@@ -36,6 +36,7 @@ struct MappingNodeOptions {
   double max_backwards_jump_s = 0.5;  // ~max_backwards_jump_s: events further back reset [s]
   int max_queue_packets = 2000;       // ~max_queue_packets: bound of the input queue [messages]
   double status_period_s = 10.0;      // ~status_period_s: period of the one-line status [s]
+  int nice = 0;                       // ~nice: CPU priority (0..19; higher yields to the others)
   void validate() const;              // throws std::invalid_argument naming the parameter
 };
 
