@@ -354,7 +354,7 @@ TEST(Backend, OptionsValidateNamesTheField) {
 TEST(Backend, OfflinePipelineWritesTheBackendOutputs) {
   Scene sc;
   PipelineConfig cfg = loadPipelineConfig(std::string(VWE_VO_SOURCE_DIR) + "/config/vwe_vo.yaml");
-  EXPECT_EQ(cfg.backend.knot_spacing_s, 0.3);
+  EXPECT_EQ(cfg.backend.knot_spacing_s, 0.2);
   cfg.camera = testCalibration();
   cfg.T_base_cam = testExtrinsics();
   cfg.frontend.nominal_speed_mps = kSpeed;

@@ -24,7 +24,7 @@ namespace vwe_vo {
 struct BackendOptions {
   VolumeOptions volume;                  // the VWE grid of every back-end volume
   int degree = 3;                        // spline degree p (1..5)
-  double knot_spacing_s = 0.3;           // uniform knot span [s]
+  double knot_spacing_s = 0.2;           // uniform knot span [s]
   double tau1_s = 0.2;                   // spacing of the volume reference times [s]
   double tau2_s = 0.4;                   // events span of one volume [s], > tau1_s
   double window_s = 2.0;                 // length of the optimised sliding window [s]
@@ -36,7 +36,7 @@ struct BackendOptions {
   double init_sample_interval_s = 0.05;  // spacing of the dead-reckoned poses fitted [s]
   double smoothness_weight = 0.05;       // second-difference prior of the initial fit [1]
   double speed_prior_weight = 10.0;      // relative-speed prior vs the normalised VWE (0: off) [1]
-  double deformation_weight = 0.03;      // third-difference prior on the control-point moves (0: off) [1]
+  double deformation_weight = 1.0;       // third-difference prior on the control-point moves (0: off) [1]
   double max_backwards_jump_s = 0.05;    // arcs older than newest - this reset the back-end [s]
   double output_rate_hz = 20.0;          // rate of the sampled trajectory (backend.tum) [Hz]
   uint64_t seed = 1;                     // subsampling seed
