@@ -120,7 +120,7 @@ Scene buildIndoor(uint64_t seed, const PathSamples& path) {
   const int t_poster2 = addTexture(s, TextureStyle::kPoster, 256, 0.005f, rng());
   const int t_box1 = addTexture(s, TextureStyle::kGeneric, 256, 0.008f, rng());
   const int t_box2 = addTexture(s, TextureStyle::kGeneric, 256, 0.006f, rng());
-  const int t_ceil = addTexture(s, TextureStyle::kFloor, 256, 0.02f, rng());
+  const int t_ceil = addTexture(s, TextureStyle::kCeiling, 256, 0.02f, rng());
   const Eigen::Vector2d c = path.bbox.center();
   const Eigen::Vector2d half_path = 0.5 * path.bbox.sizes();
   const float hx = static_cast<float>(std::max(5.0, half_path.x() + 3.5) + 0.4 * u01(rng));
@@ -171,7 +171,7 @@ Scene buildCorridor(uint64_t seed, const PathSamples& path) {
   const int t_poster = addTexture(s, TextureStyle::kPoster, 256, 0.006f, rng());
   const int t_door = addTexture(s, TextureStyle::kGeneric, 256, 0.004f, rng());
   const int t_box = addTexture(s, TextureStyle::kGeneric, 256, 0.008f, rng());
-  const int t_ceil = addTexture(s, TextureStyle::kFloor, 256, 0.02f, rng());
+  const int t_ceil = addTexture(s, TextureStyle::kCeiling, 256, 0.02f, rng());
   // The corridor runs along x around the path's bounding box.
   const float x0 = static_cast<float>(path.bbox.min().x()) - 4.f, x1 = static_cast<float>(path.bbox.max().x()) + 4.f;
   const float yc = static_cast<float>(path.bbox.center().y());
@@ -221,7 +221,7 @@ Scene buildStreet(uint64_t seed, const PathSamples& path) {
   const int t_road = addTexture(s, TextureStyle::kAsphalt, 1024, 0.01f, rng());
   const int t_car = addTexture(s, TextureStyle::kGeneric, 256, 0.01f, rng());
   const int t_pole = addTexture(s, TextureStyle::kGeneric, 128, 0.01f, rng());
-  const int t_mark = addTexture(s, TextureStyle::kFloor, 64, 0.05f, rng());
+  const int t_mark = addTexture(s, TextureStyle::kCeiling, 64, 0.05f, rng());
   const Eigen::Vector2d bmin = path.bbox.min() - Eigen::Vector2d(60, 60), bmax = path.bbox.max() + Eigen::Vector2d(60, 60);
   s.addRect(2, 0.f, V2(bmin.x(), bmin.y()), V2(bmax.x(), bmax.y()), t_road, 0.7f, rng());
   std::vector<Eigen::AlignedBox2d> buildings, small;
