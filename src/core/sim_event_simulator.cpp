@@ -326,13 +326,43 @@ void EventSimulator::simulateUntil(int64_t t_end_ns, EventVector* out) {
     t_now_ns_ = t1;
   }
   // Deterministic order whatever the thread interleaving and tile schedule: time, then row,
-  // column, polarity.
-  std::sort(out->begin() + first, out->end(), [](const PixelEvent& a, const PixelEvent& b) {
+  // column, polarity (a total order: equal keys are equal events).
+  sortEvents(out->begin() + first, out->end());
+}
+
+void EventSimulator::sortEvents(EventVector::iterator begin, EventVector::iterator end) {
+  const size_t n = static_cast<size_t>(end - begin);
+  if (n < 2) return;
+  auto less = [](const PixelEvent& a, const PixelEvent& b) {
     if (a.t_ns != b.t_ns) return a.t_ns < b.t_ns;
     if (a.y != b.y) return a.y < b.y;
     if (a.x != b.x) return a.x < b.x;
     return a.polarity < b.polarity;
-  });
+  };
+  // Counting sort into ~n/8 buckets of equal time span (monotonic in t), then each small bucket
+  // by the full order: the same result as one comparison sort, in about a third of the time.
+  int64_t t_min = begin->t_ns, t_max = begin->t_ns;
+  for (auto it = begin; it != end; ++it) {
+    t_min = std::min(t_min, it->t_ns);
+    t_max = std::max(t_max, it->t_ns);
+  }
+  const size_t n_buckets = std::max<size_t>(1, n / 8);
+  const double scale = static_cast<double>(n_buckets) / (static_cast<double>(t_max - t_min) + 1.0);
+  auto bucket = [&](const PixelEvent& e) {
+    return std::min(n_buckets - 1, static_cast<size_t>(static_cast<double>(e.t_ns - t_min) * scale));
+  };
+  sort_start_.assign(n_buckets + 1, 0);
+  for (auto it = begin; it != end; ++it) ++sort_start_[bucket(*it) + 1];
+  for (size_t b = 0; b < n_buckets; ++b) sort_start_[b + 1] += sort_start_[b];
+  sort_scratch_.resize(n);
+  for (auto it = begin; it != end; ++it) sort_scratch_[sort_start_[bucket(*it)]++] = *it;
+  // sort_start_[b] is now the end of bucket b.
+  size_t b0 = 0;
+  for (size_t b = 0; b < n_buckets; ++b) {
+    std::sort(sort_scratch_.begin() + b0, sort_scratch_.begin() + sort_start_[b], less);
+    b0 = sort_start_[b];
+  }
+  std::copy(sort_scratch_.begin(), sort_scratch_.end(), begin);
 }
 
 cv::Mat1f EventSimulator::depthMap(int64_t t_ns) {

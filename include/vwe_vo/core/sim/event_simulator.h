@@ -126,6 +126,10 @@ class EventSimulator {
   std::vector<int> hot_pixels_;
   std::vector<EventVector> thread_events_;
   std::vector<uint64_t> thread_drops_;
+  // Sorts events by (time, row, column, polarity); scratch buffers kept between calls.
+  void sortEvents(EventVector::iterator begin, EventVector::iterator end);
+  EventVector sort_scratch_;
+  std::vector<size_t> sort_start_;
   std::mt19937_64 noise_rng_;
   SimulatorStats stats_;
 };
