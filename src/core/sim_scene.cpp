@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <stdexcept>
@@ -119,7 +120,7 @@ Scene buildIndoor(uint64_t seed, const PathSamples& path) {
   const int t_poster2 = addTexture(s, TextureStyle::kPoster, 256, 0.005f, rng());
   const int t_box1 = addTexture(s, TextureStyle::kGeneric, 256, 0.008f, rng());
   const int t_box2 = addTexture(s, TextureStyle::kGeneric, 256, 0.006f, rng());
-  const int t_ceil = addTexture(s, TextureStyle::kFloor, 256, 0.02f, rng());
+  const int t_ceil = addTexture(s, TextureStyle::kCeiling, 256, 0.02f, rng());
   const Eigen::Vector2d c = path.bbox.center();
   const Eigen::Vector2d half_path = 0.5 * path.bbox.sizes();
   const float hx = static_cast<float>(std::max(5.0, half_path.x() + 3.5) + 0.4 * u01(rng));
@@ -170,7 +171,7 @@ Scene buildCorridor(uint64_t seed, const PathSamples& path) {
   const int t_poster = addTexture(s, TextureStyle::kPoster, 256, 0.006f, rng());
   const int t_door = addTexture(s, TextureStyle::kGeneric, 256, 0.004f, rng());
   const int t_box = addTexture(s, TextureStyle::kGeneric, 256, 0.008f, rng());
-  const int t_ceil = addTexture(s, TextureStyle::kFloor, 256, 0.02f, rng());
+  const int t_ceil = addTexture(s, TextureStyle::kCeiling, 256, 0.02f, rng());
   // The corridor runs along x around the path's bounding box.
   const float x0 = static_cast<float>(path.bbox.min().x()) - 4.f, x1 = static_cast<float>(path.bbox.max().x()) + 4.f;
   const float yc = static_cast<float>(path.bbox.center().y());
@@ -220,7 +221,7 @@ Scene buildStreet(uint64_t seed, const PathSamples& path) {
   const int t_road = addTexture(s, TextureStyle::kAsphalt, 1024, 0.01f, rng());
   const int t_car = addTexture(s, TextureStyle::kGeneric, 256, 0.01f, rng());
   const int t_pole = addTexture(s, TextureStyle::kGeneric, 128, 0.01f, rng());
-  const int t_mark = addTexture(s, TextureStyle::kFloor, 64, 0.05f, rng());
+  const int t_mark = addTexture(s, TextureStyle::kCeiling, 64, 0.05f, rng());
   const Eigen::Vector2d bmin = path.bbox.min() - Eigen::Vector2d(60, 60), bmax = path.bbox.max() + Eigen::Vector2d(60, 60);
   s.addRect(2, 0.f, V2(bmin.x(), bmin.y()), V2(bmax.x(), bmax.y()), t_road, 0.7f, rng());
   std::vector<Eigen::AlignedBox2d> buildings, small;
@@ -310,28 +311,41 @@ SceneRenderer::SceneRenderer(const Scene& scene, const CameraModel& camera, int 
   tiles_x_ = (width_ + kTile - 1) / kTile;
   tiles_y_ = (height_ + kTile - 1) / kTile;
   pixel_angle_ = static_cast<float>(1.0 / std::max(camera.calibration().fx, camera.calibration().fy));
-  rays_.resize(static_cast<size_t>(width_) * height_ * ss_ * ss_);
+  const size_t n_rays = static_cast<size_t>(width_) * height_ * ss_ * ss_;
+  ray_x_.resize(n_rays);
+  ray_y_.resize(n_rays);
+  ray_z_.resize(n_rays);
+  tile_ray_begin_.resize(static_cast<size_t>(tiles_x_) * tiles_y_ + 1);
   tile_bounds_.assign(static_cast<size_t>(tiles_x_) * tiles_y_,
                       Eigen::Vector4f(std::numeric_limits<float>::max(), -std::numeric_limits<float>::max(),
                                       std::numeric_limits<float>::max(), -std::numeric_limits<float>::max()));
-  for (int y = 0; y < height_; ++y)
-    for (int x = 0; x < width_; ++x)
-      for (int j = 0; j < ss_; ++j)
-        for (int i = 0; i < ss_; ++i) {
-          Eigen::Vector3f b;
-          if (ss_ == 1) {
-            b = camera.bearing(x, y);
-          } else {
-            b = camera.bearingAt(x + (i + 0.5) / ss_ - 0.5, y + (j + 0.5) / ss_ - 0.5).cast<float>();
-          }
-          rays_[(static_cast<size_t>(y) * width_ + x) * ss_ * ss_ + j * ss_ + i] = b;
-          Eigen::Vector4f& tb = tile_bounds_[(y / kTile) * tiles_x_ + x / kTile];
-          const float nx = b.x() / b.z(), ny = b.y() / b.z();
-          tb[0] = std::min(tb[0], nx);
-          tb[1] = std::max(tb[1], nx);
-          tb[2] = std::min(tb[2], ny);
-          tb[3] = std::max(tb[3], ny);
-        }
+  size_t r = 0;
+  for (int ty = 0; ty < tiles_y_; ++ty)
+    for (int tx = 0; tx < tiles_x_; ++tx) {
+      tile_ray_begin_[ty * tiles_x_ + tx] = r;
+      Eigen::Vector4f& tb = tile_bounds_[ty * tiles_x_ + tx];
+      for (int y = ty * kTile; y < std::min(height_, (ty + 1) * kTile); ++y)
+        for (int x = tx * kTile; x < std::min(width_, (tx + 1) * kTile); ++x)
+          for (int j = 0; j < ss_; ++j)
+            for (int i = 0; i < ss_; ++i, ++r) {
+              Eigen::Vector3f b;
+              if (ss_ == 1) {
+                b = camera.bearing(x, y);
+              } else {
+                b = camera.bearingAt(x + (i + 0.5) / ss_ - 0.5, y + (j + 0.5) / ss_ - 0.5).cast<float>();
+              }
+              ray_x_[r] = b.x();
+              ray_y_[r] = b.y();
+              ray_z_[r] = b.z();
+              const float nx = b.x() / b.z(), ny = b.y() / b.z();
+              tb[0] = std::min(tb[0], nx);
+              tb[1] = std::max(tb[1], nx);
+              tb[2] = std::min(tb[2], ny);
+              tb[3] = std::max(tb[3], ny);
+            }
+    }
+  tile_ray_begin_.back() = r;
+  for (auto* v : {&ray_x_, &ray_y_, &ray_z_}) v->resize(n_rays + 4, 0.f);  // a chunk's last vector may read past its end
   // Grow tile bounds by half a pixel so faces touching a tile's border are not missed.
   for (auto& tb : tile_bounds_) tb += Eigen::Vector4f(-pixel_angle_, pixel_angle_, -pixel_angle_, pixel_angle_);
   tile_faces_.resize(tile_bounds_.size());
@@ -441,57 +455,113 @@ void SceneRenderer::renderTileRow(int tile_row, float* intensity, float* depth) 
   for (int tx = 0; tx < tiles_x_; ++tx) renderTile(tx, tile_row, intensity, depth);
 }
 
+namespace {
+// 4-wide float and int vectors (GCC / Clang vector extensions: SSE2 on x86-64, NEON on ARM):
+// the ray-face tests below are branch-free selects that the compiler would not vectorise itself.
+typedef float Vf4 __attribute__((vector_size(16)));
+typedef int32_t Vi4 __attribute__((vector_size(16)));
+inline Vf4 loadVf4(const float* p) {
+  Vf4 v;
+  std::memcpy(&v, p, sizeof(v));
+  return v;
+}
+}  // namespace
+
 void SceneRenderer::renderTile(int tx, int tile_row, float* intensity, float* depth) const {
-  const int y0 = tile_row * kTile, y1 = std::min(height_, y0 + kTile);
+  // Rays are processed in chunks of up to kChunk as vectors: ray directions, then one
+  // branch-free pass over the chunk per candidate face, nearest face first, until no ray of the
+  // chunk can still find a nearer hit (the same hits as testing each ray until the next face's
+  // nearest point is farther than its hit); then one texture lookup per ray.
+  constexpr int kChunk = 256, kV = kChunk / 4;
   const int nss = ss_ * ss_;
   const float inv_nss = 1.0f / static_cast<float>(nss);
   const float foot_scale = pixel_angle_ / static_cast<float>(ss_);
-  const std::vector<int>& faces = tile_faces_[tile_row * tiles_x_ + tx];
-  const int* face_idx = faces.data();
+  const int tile = tile_row * tiles_x_ + tx;
+  const std::vector<int>& faces = tile_faces_[tile];
   const int n_faces = static_cast<int>(faces.size());
   const int x0 = tx * kTile, x1 = std::min(width_, x0 + kTile);
-  for (int y = y0; y < y1; ++y)
-    for (int x = x0; x < x1; ++x) {
-      const size_t pix = static_cast<size_t>(y) * width_ + x;
-      float sum = 0.f, z_cam = 0.f;
-      for (int s = 0; s < nss; ++s) {
-        const Eigen::Vector3f& b = rays_[pix * nss + s];
-        const Eigen::Vector3f d = R_odom_cam_ * b;
-        // Ray parameter t = plane_rel / d[axis]; a zero component gives inf or NaN, which the
-        // range test below rejects.
-        const float inv_d[3] = {1.0f / d.x(), 1.0f / d.y(), 1.0f / d.z()};
-        float t_best = std::numeric_limits<float>::max();
-        const FaceCam* best = nullptr;
-        float bu = 0.f, bv = 0.f;
-        for (int k = 0; k < n_faces; ++k) {
-          const FaceCam& f = visible_[face_idx[k]];
-          if (f.min_dist >= t_best) break;  // this face and all after it are farther
-          const float t = f.plane_rel * inv_d[f.axis];
-          if (!(t > 1e-4f && t < t_best)) continue;
-          const float u = f.o_u + t * d[f.ua];
-          if (u < f.lo[0] || u > f.hi[0]) continue;
-          const float v = f.o_v + t * d[f.va];
-          if (v < f.lo[1] || v > f.hi[1]) continue;
-          t_best = t;
-          best = &f;
-          bu = u;
-          bv = v;
-        }
-        if (!best) {
-          // Sky: a little brighter upwards.
-          sum += scene_.sky_intensity * (0.85f + 0.15f * std::min(1.f, std::max(0.f, d.z() * 3.f)));
-          continue;
-        }
-        // Pixel footprint on the surface: grows with distance and obliquity (isotropic filter
-        // with a compromise between the two axes of the footprint ellipse).
-        const float cos_inc = std::max(0.05f, std::abs(d[best->axis]));
-        const float footprint = t_best * foot_scale / std::sqrt(cos_inc);
-        sum += best->gain * best->tex->sample(bu + best->offset[0], bv + best->offset[1], footprint);
-        if (s == 0) z_cam = t_best * b.z();
+  const int y0 = tile_row * kTile, y1 = std::min(height_, y0 + kTile);
+  const int tile_w = x1 - x0;
+  const int rows_per_chunk = std::max(1, kChunk / (tile_w * nss));
+  const Eigen::Matrix3f& R = R_odom_cam_;
+  Vf4 d[3][kV];    // ray directions in odom (unit)
+  Vf4 inv[3][kV];  // their reciprocals (a zero component gives inf: no hit)
+  Vf4 t_hit[kV], u_hit[kV], v_hit[kV], d_normal[kV];  // nearest hit: distance, (u, v), direction along the normal
+  Vi4 face_hit[kV];  // index into faces, -1: sky
+  constexpr float kFar = std::numeric_limits<float>::max();
+  for (int cy0 = y0; cy0 < y1; cy0 += rows_per_chunk) {
+    const int cy1 = std::min(y1, cy0 + rows_per_chunk);
+    const int n = (cy1 - cy0) * tile_w * nss;
+    const int nv = (n + 3) / 4;
+    const size_t r0 = tile_ray_begin_[tile] + static_cast<size_t>(cy0 - y0) * tile_w * nss;
+    const float* bx = ray_x_.data() + r0;
+    const float* by = ray_y_.data() + r0;
+    const float* bz = ray_z_.data() + r0;
+    for (int i = 0; i < nv; ++i) {
+      const Vf4 x = loadVf4(bx + 4 * i), y = loadVf4(by + 4 * i), z = loadVf4(bz + 4 * i);
+      for (int a = 0; a < 3; ++a) {
+        d[a][i] = R(a, 0) * x + R(a, 1) * y + R(a, 2) * z;
+        inv[a][i] = 1.0f / d[a][i];
       }
-      if (intensity) intensity[pix] = sum * inv_nss;
-      if (depth) depth[pix] = z_cam;
+      t_hit[i] = Vf4{kFar, kFar, kFar, kFar};
+      u_hit[i] = v_hit[i] = d_normal[i] = Vf4{0, 0, 0, 0};
+      face_hit[i] = Vi4{-1, -1, -1, -1};
     }
+    for (int k = n; k < 4 * nv; ++k) t_hit[k / 4][k % 4] = 0.f;  // padding lanes: never hit, never open
+    for (int k = 0; k < n_faces; ++k) {
+      const FaceCam& f = visible_[faces[k]];
+      const Vf4* inv_a = inv[f.axis];
+      const Vf4* d_a = d[f.axis];
+      const Vf4* d_u = d[f.ua];
+      const Vf4* d_v = d[f.va];
+      const float plane_rel = f.plane_rel, o_u = f.o_u, o_v = f.o_v;
+      const float lo_u = f.lo[0], hi_u = f.hi[0], lo_v = f.lo[1], hi_v = f.hi[1];
+      // Rays whose hit is still farther than the next face's nearest point (all later faces are
+      // at least that far): when none is left, the chunk is done.
+      const float next_min = k + 1 < n_faces ? visible_[faces[k + 1]].min_dist : -1.0f;
+      Vi4 open = {0, 0, 0, 0};
+      for (int i = 0; i < nv; ++i) {
+        // Distance to the face's plane along the ray, and where it meets the plane.
+        const Vf4 t = plane_rel * inv_a[i];
+        const Vf4 u = o_u + t * d_u[i];
+        const Vf4 v = o_v + t * d_v[i];
+        const Vf4 t_old = t_hit[i];
+        const Vi4 hit = (t > 1e-4f) & (t < t_old) & (u >= lo_u) & (u <= hi_u) & (v >= lo_v) & (v <= hi_v);
+        const Vf4 t_new = hit ? t : t_old;
+        t_hit[i] = t_new;
+        u_hit[i] = hit ? u : u_hit[i];
+        v_hit[i] = hit ? v : v_hit[i];
+        d_normal[i] = hit ? d_a[i] : d_normal[i];
+        face_hit[i] = hit ? k : face_hit[i];
+        open -= t_new > next_min;
+      }
+      if (open[0] + open[1] + open[2] + open[3] == 0) break;
+    }
+    int i = 0;
+    for (int y = cy0; y < cy1; ++y)
+      for (int x = x0; x < x1; ++x) {
+        const size_t pix = static_cast<size_t>(y) * width_ + x;
+        float sum = 0.f, z_cam = 0.f;
+        for (int s = 0; s < nss; ++s, ++i) {
+          const int q = i / 4, l = i % 4;
+          const int fk = face_hit[q][l];
+          if (fk < 0) {
+            // Sky: a little brighter upwards.
+            sum += scene_.sky_intensity * (0.85f + 0.15f * std::min(1.f, std::max(0.f, d[2][q][l] * 3.f)));
+            continue;
+          }
+          const FaceCam& f = visible_[faces[fk]];
+          // Pixel footprint on the surface: grows with distance and obliquity (isotropic filter
+          // with a compromise between the two axes of the footprint ellipse).
+          const float t = t_hit[q][l];
+          const float footprint = t * foot_scale / std::sqrt(std::max(0.05f, std::abs(d_normal[q][l])));
+          sum += f.gain * f.tex->sample(u_hit[q][l] + f.offset[0], v_hit[q][l] + f.offset[1], footprint);
+          if (s == 0) z_cam = t * bz[i];
+        }
+        if (intensity) intensity[pix] = sum * inv_nss;
+        if (depth) depth[pix] = z_cam;
+      }
+  }
 }
 
 void SceneRenderer::render(const Pose3& T_odom_cam, float* intensity, float* depth, ThreadPool* pool) {

@@ -12,7 +12,8 @@ namespace vwe_vo {
 namespace sim {
 
 namespace {
-constexpr float kIndoorContrast = 0.55f;  // log-contrast factor of the indoor texture styles [-]
+constexpr float kIndoorContrast = 0.55f;  // log-contrast factor of the indoor texture styles but the floor [-]
+constexpr int kFloorTexelsPerChip = 32;  // texture area per chip of the floor style [texels]
 bool isPowerOfTwo(int n) { return n > 0 && (n & (n - 1)) == 0; }
 }  // namespace
 
@@ -125,6 +126,21 @@ Texture makeTexture(TextureStyle style, int size, float texel_size_m, uint64_t s
       noise_stops = 0.25f;
       break;
     case TextureStyle::kFloor: {
+      // One chip of 1-6 texels, dark or light, per kFloorTexelsPerChip texels: the fine, high-contrast
+      // grain of a lab floor, which is what a low, forward-looking camera sees moving fastest
+      // when driving straight.
+      L.setTo(-1.4f);
+      const int tile = size / 8;
+      for (int k = 0; k <= 8; ++k) {  // tile seams
+        cv::line(L, cv::Point(k * tile, 0), cv::Point(k * tile, size), cv::Scalar(-2.3f), std::max(1, size / 256));
+        cv::line(L, cv::Point(0, k * tile), cv::Point(size, k * tile), cv::Scalar(-2.3f), std::max(1, size / 256));
+      }
+      drawRandomShapes(L, 60, -2.3f, -0.8f, sz * 0.01f, sz * 0.1f, rng);  // scuffs and patches
+      drawRandomShapes(L, size * size / kFloorTexelsPerChip, -3.0f, -0.3f, 1.0f, 6.0f, rng);
+      noise_stops = 0.4f;
+      break;
+    }
+    case TextureStyle::kCeiling: {
       L.setTo(-1.5f);
       const int tile = size / 8;
       for (int k = 0; k <= 8; ++k) {  // tile seams
@@ -159,10 +175,11 @@ Texture makeTexture(TextureStyle style, int size, float texel_size_m, uint64_t s
       break;
   }
   L += noise_stops * multiScaleNoise(size, 4, 0.65f, rng);
-  // Indoor surfaces (paint, paper, furniture) under diffuse light: log contrast compressed about
-  // the mean, which keeps the 1/f spectrum and every edge but brings a DAVIS346 moving at
-  // turtlebot speed to ~0.5-1 M events/s. Street textures keep their full contrast.
-  const float contrast = style == TextureStyle::kFacade || style == TextureStyle::kAsphalt ? 1.0f : kIndoorContrast;
+  // Indoor surfaces (paint, paper, furniture, ceiling) under diffuse light: log contrast
+  // compressed about the mean, which keeps the 1/f spectrum and every edge. The floor and the
+  // street textures keep their full contrast.
+  const bool full = style == TextureStyle::kFacade || style == TextureStyle::kAsphalt || style == TextureStyle::kFloor;
+  const float contrast = full ? 1.0f : kIndoorContrast;
   if (contrast != 1.0f) {
     const float mean = static_cast<float>(cv::mean(L)[0]);
     L = mean + contrast * (L - mean);

@@ -76,6 +76,26 @@ TEST(Simulator, ChunkedCallsStaySortedInsideTheirIntervals) {
   EXPECT_NEAR(static_cast<double>(total), static_cast<double>(all.size()), 0.05 * all.size());
 }
 
+TEST(Simulator, SameEventsWhateverTheThreadCount) {
+  // Tile rows are rendered on a pool; the events (signal and noise) must not depend on how many
+  // threads share them out.
+  const auto tr = VehicleTrajectory::fromProfile(circleProfile(0.4, 25 * kDeg, 1.0));
+  const Scene scene = buildScene("indoor", 5, tr);
+  EventVector ev[2];
+  for (int k = 0; k < 2; ++k) {
+    EventSimulatorOptions opt;
+    opt.num_threads = k == 0 ? 1 : 3;
+    EventSimulator sim(scene, camera(), defaultTBaseCam(), tr, opt);
+    for (int c = 1; c <= 4; ++c) sim.simulateUntil(secToNs(0.05 * c), &ev[k]);
+  }
+  ASSERT_GT(ev[0].size(), 10000u);
+  ASSERT_EQ(ev[0].size(), ev[1].size());
+  for (size_t i = 0; i < ev[0].size(); ++i) {
+    const PixelEvent &a = ev[0][i], &b = ev[1][i];
+    ASSERT_TRUE(a.t_ns == b.t_ns && a.x == b.x && a.y == b.y && a.polarity == b.polarity) << "event " << i;
+  }
+}
+
 TEST(Simulator, StaticCameraGivesOnlyNoiseAtConfiguredRate) {
   EventSimulatorOptions opt;
   opt.noise_rate_hz = 2.0;

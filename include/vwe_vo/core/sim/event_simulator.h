@@ -1,6 +1,6 @@
 // ESIM-style event camera simulator: renders the scene's log intensity on the sensor at adaptive
-// time steps (per 16x16 tile: a tile is re-rendered only when its own predicted image motion
-// reaches max_pixel_motion_px), interpolates it linearly in time per pixel and emits an event at every crossing of
+// time steps (per 16x16 tile: a tile is re-rendered only just before its own predicted image
+// motion reaches max_pixel_motion_px), interpolates it linearly in time per pixel and emits an event at every crossing of
 // the pixel's contrast threshold, with per-pixel threshold mismatch, a refractory period,
 // background-activity noise, hot pixels and an optional illumination toggle (HDR / low light).
 #pragma once
@@ -91,12 +91,14 @@ class EventSimulator {
   const std::vector<float>& thresholdsOn() const { return c_on_; }
 
  private:
-  // Predicts the image motion of every tile at t (tile_rate_, log_rate_) and returns the next
-  // global step: the time the fastest tile needs to move max_pixel_motion_px.
-  double planStep(int64_t t_ns);
-  // Renders at t1 the tiles that cannot wait for the next step (all if flush) and appends their
-  // events since each tile's last render, plus the noise of (t0, t1], unsorted.
-  void step(int64_t t0_ns, int64_t t1_ns, bool flush, EventVector* out);
+  // Predicts the image motion of every tile at t and from it the longest time each tile may go
+  // between renders (tile_allowed_ns_); returns the next global step: 1 / kRenderSubsteps of the
+  // fastest tile's time, so that every tile is rendered within a fraction of its own time.
+  int64_t planStep(int64_t t_ns);
+  // Renders at t1 the tiles that could not wait for one more step of next_step_ns (all if
+  // flush) and appends their events since each tile's last render, plus the noise of (t0, t1],
+  // unsorted.
+  void step(int64_t t0_ns, int64_t t1_ns, int64_t next_step_ns, bool flush, EventVector* out);
   // Renders the due tiles of tile row `tile_row` at t1 and emits their threshold crossings into
   // thread_events_[thread].
   void processTileRow(int tile_row, int thread, int64_t t1_ns, float log_illum1);
@@ -116,13 +118,18 @@ class EventSimulator {
   std::vector<float> c_on_, c_off_;              // per-pixel thresholds
   std::vector<int64_t> last_event_ns_;           // per pixel, for the refractory period
   int tiles_x_ = 0, tiles_y_ = 0;
-  std::vector<float> tile_rate_;                 // per tile: predicted max image motion [px/s]
+  static constexpr int kRenderSubsteps = 2;      // global steps per render interval of the fastest tile
+  std::vector<int64_t> tile_allowed_ns_;         // per tile: longest time between two renders [ns]
   std::vector<int64_t> tile_t_ns_;               // per tile: time of its last render
   std::vector<uint8_t> tile_due_;                // per tile: rendered in the current step
   double log_rate_ = 0.0;                        // |d log illumination / dt| [1/s]
   std::vector<int> hot_pixels_;
   std::vector<EventVector> thread_events_;
   std::vector<uint64_t> thread_drops_;
+  // Sorts events by (time, row, column, polarity); scratch buffers kept between calls.
+  void sortEvents(EventVector::iterator begin, EventVector::iterator end);
+  EventVector sort_scratch_;
+  std::vector<size_t> sort_start_;
   std::mt19937_64 noise_rng_;
   SimulatorStats stats_;
 };

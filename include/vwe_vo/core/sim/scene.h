@@ -89,7 +89,10 @@ class SceneRenderer {
   int ss_;
   int width_, height_, tiles_x_, tiles_y_;
   float pixel_angle_;  // approximate angle of one pixel [rad]
-  std::vector<Eigen::Vector3f> rays_;  // ss^2 unit bearings per pixel (camera frame)
+  // Unit bearings (camera frame) of every ray, structure of arrays in tile order: the rays of
+  // tile t start at tile_ray_begin_[t], pixel row-major inside the tile, ss^2 rays per pixel.
+  std::vector<float> ray_x_, ray_y_, ray_z_;
+  std::vector<size_t> tile_ray_begin_;
   std::vector<Eigen::Vector4f> tile_bounds_;  // normalised (x/z, y/z) min/max per tile
   std::vector<Eigen::Vector2f> col_bounds_, row_bounds_;  // union of tile bounds per tile column / row
   Eigen::Vector4f sensor_bounds_;  // union of all tile bounds

@@ -15,7 +15,8 @@ namespace sim {
 enum class TextureStyle {
   kGeneric,   // noise + random rectangles, lines, blobs of many orientations and contrasts
   kPoster,    // high-contrast shapes and text-like bars (posters, whiteboards)
-  kFloor,     // lower contrast noise with tile seams and scuffs
+  kFloor,     // speckled vinyl / terrazzo: dense dark and light chips, tile seams, scuffs
+  kCeiling,   // lower contrast noise with tile seams and scuffs (ceiling tiles, road markings)
   kFacade,    // brick-like noise with a grid of dark windows with frames
   kAsphalt,   // fine grain, cracks and patches
 };
