@@ -90,6 +90,7 @@ void loadOptions(const YAML::Node& node, const std::string& section, FrontendOpt
   s.get("standstill_speed_mps", &o->standstill_speed_mps);
   s.get("min_events", &o->min_events);
   s.get("min_confidence", &o->min_confidence);
+  s.get("rescan_confidence", &o->rescan_confidence);
   s.get("split_omega_change_rad_s", &o->split_omega_change_rad_s);
   s.get("use_gyro_prior", &o->use_gyro_prior);
   s.get("gyro_prior_half_range_rad_s", &o->gyro_prior_half_range_rad_s);
