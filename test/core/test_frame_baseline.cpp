@@ -270,6 +270,7 @@ TEST(FrameBaseline, BadFramesAreLostOrRefused) {
   EXPECT_FALSE(black.reason.empty());
   const FrameEstimate white = b.addFrame(secToNs(0.12), cv::Mat1b(cam.height(), cam.width(), uint8_t(255)));
   EXPECT_EQ(white.status, FrameStatus::kLost);
+  EXPECT_NE(white.reason.find("over-exposed"), std::string::npos) << white.reason;
   // Back to a textured frame: tracks restart, still not a made-up estimate.
   EXPECT_EQ(b.addFrame(secToNs(0.16), tex).status, FrameStatus::kLost);
   // Wrong size and wrong type are refused with an error naming the sizes.
