@@ -319,8 +319,8 @@ FrameEstimate FrameBaseline::addFrame(int64_t t_ns, const cv::Mat& image) {
   cv::meanStdDev(image, mean, stddev);
   const double saturated = static_cast<double>(cv::countNonZero(image >= 255)) / image.total();
   std::string bad;
-  if (stddev[0] < options_.min_contrast_dn) bad = fmt("low contrast (std dev %.2f DN, mean %.1f DN)", stddev[0], mean[0]);
-  else if (saturated > options_.max_saturated_fraction) bad = fmt("over-exposed (%.0f %% saturated)", 100 * saturated);
+  if (saturated > options_.max_saturated_fraction) bad = fmt("over-exposed (%.0f %% saturated)", 100 * saturated);
+  else if (stddev[0] < options_.min_contrast_dn) bad = fmt("low contrast (std dev %.2f DN, mean %.1f DN)", stddev[0], mean[0]);
   if (!bad.empty()) {
     prev_image_.release();
     prev_points_.clear();
@@ -344,6 +344,15 @@ FrameEstimate FrameBaseline::addFrame(int64_t t_ns, const cv::Mat& image) {
     detectFeatures(prev_image_);
     e.status = started_ ? FrameStatus::kLost : FrameStatus::kFirst;
     if (started_) e.reason = gap ? "frame gap: tracks restarted" : "tracks restarted";
+    return finish(e);
+  }
+
+  // Sensor noise makes two real frames differ: an identical one is a repeated frame. LOST, and the
+  // previous frame stays the reference with its stamp, so that the next real frame measures the
+  // motion over the time that really passed.
+  if (cv::norm(image, prev_image_, cv::NORM_INF) == 0) {
+    e.status = FrameStatus::kLost;
+    e.reason = "frame identical to the previous one";
     return finish(e);
   }
 
@@ -382,9 +391,7 @@ FrameEstimate FrameBaseline::addFrame(int64_t t_ns, const cv::Mat& image) {
     median_flow = flow[flow.size() / 2];
   }
   std::vector<bool> inlier(p0.size(), false);
-  if (cv::norm(image, prev_image_, cv::NORM_INF) == 0) {
-    lose("frame identical to the previous one");
-  } else if (e.tracks < options_.min_tracks) {
+  if (e.tracks < options_.min_tracks) {
     lose(fmt("%.0f tracks survive (< %.0f)", e.tracks, options_.min_tracks));
   } else if (e.v < options_.standstill_speed_mps) {
     e.status = FrameStatus::kStandstill;

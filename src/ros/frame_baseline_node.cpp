@@ -6,6 +6,7 @@
 
 #include "vwe_vo/core/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
+#include "vwe_vo/ros/event_input.h"
 #include "vwe_vo/ros/topics.h"
 
 namespace vwe_vo {
@@ -80,18 +81,11 @@ void FrameBaselineNode::imageCallback(const sensor_msgs::Image::ConstPtr& msg) {
 
 void FrameBaselineNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
-  if (have_calibration_) return;
-  try {
-    calibration_ = calibrationFromMsg(*msg);
-  } catch (const std::invalid_argument& e) {
-    ROS_WARN_THROTTLE(5, "frame_baseline_node: camera_info refused: %s", e.what());
-    return;
+  if (acceptCameraInfo(*msg, "frame_baseline_node", &have_calibration_, &calibration_, camera_info_refused_)) {
+    if (inputs_before_calibration_ > 0)
+      ROS_INFO("frame_baseline_node: %zu inputs before the calibration were ignored", inputs_before_calibration_.load());
+    cv_.notify_all();
   }
-  have_calibration_ = true;
-  ROS_INFO("frame_baseline_node: calibration from camera_info: %dx%d, fx %.2f fy %.2f (%zu inputs before it ignored)",
-           calibration_.width, calibration_.height, calibration_.fx, calibration_.fy,
-           inputs_before_calibration_.load());
-  cv_.notify_all();
 }
 
 void FrameBaselineNode::odomCallback(const nav_msgs::Odometry::ConstPtr& msg) {
@@ -161,9 +155,16 @@ void FrameBaselineNode::handleFrame(const Input& input) {
     ROS_ERROR_THROTTLE(5, "frame_baseline_node: frame refused: %s (%zu so far)", ex.what(), frames_refused_.load());
     return;
   }
-  if (e.status == FrameStatus::kLost)
-    ROS_WARN_THROTTLE(5, "frame_baseline_node: LOST at %.3f s: %s (%zu of %zu frames lost)", nsToSec(e.t_ns),
-                      e.reason.c_str(), baseline_->stats().lost, baseline_->stats().frames);
+  // Losing track is said when it happens (throttled to 1 s), staying lost every 5 s.
+  if (e.status == FrameStatus::kLost) {
+    if (last_status_ != FrameStatus::kLost)
+      ROS_WARN_THROTTLE(1, "frame_baseline_node: LOST at %.3f s: %s (%zu of %zu frames lost)", nsToSec(e.t_ns),
+                        e.reason.c_str(), baseline_->stats().lost, baseline_->stats().frames);
+    else
+      ROS_WARN_THROTTLE(5, "frame_baseline_node: still LOST at %.3f s: %s (%zu of %zu frames lost)", nsToSec(e.t_ns),
+                        e.reason.c_str(), baseline_->stats().lost, baseline_->stats().frames);
+  }
+  last_status_ = e.status;
   if (e.status == FrameStatus::kOk || e.status == FrameStatus::kStandstill || e.status == FrameStatus::kFirst) {
     nav_msgs::Odometry odom;
     odom.header.stamp = toRosTime(e.t_ns);

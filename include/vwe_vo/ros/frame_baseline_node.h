@@ -77,11 +77,13 @@ class FrameBaselineNode {
   CameraCalibration calibration_;
   bool stop_ = false;
 
-  std::atomic<size_t> frames_in_{0}, frames_refused_{0}, frames_dropped_{0}, inputs_before_calibration_{0};
+  std::atomic<size_t> frames_in_{0}, frames_refused_{0}, frames_dropped_{0}, inputs_before_calibration_{0},
+      camera_info_refused_{0};
 
   // Owned by the worker thread.
   std::unique_ptr<CameraModel> camera_;
   std::unique_ptr<FrameBaseline> baseline_;
+  FrameStatus last_status_ = FrameStatus::kFirst;
   std::thread worker_;
 };
 
