@@ -6,6 +6,7 @@
 
 #include "frontend_node_harness.h"
 #include "vwe_vo/SplineTrajectory.h"
+#include "log_watch.h"
 
 using namespace vwe_vo;
 using namespace vwe_vo::test;
@@ -44,17 +45,9 @@ class BackendRecorder {
     std::lock_guard<std::mutex> lock(mutex_);
     return odoms_;
   }
+  /// True if the node logged a line containing `text` at `level` or above.
   bool logged(const std::string& text, uint8_t level, double timeout_s = 3.0) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
-    do {
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        for (const rosgraph_msgs::Log& l : logs_)
-          if (l.level >= level && l.msg.find(text) != std::string::npos) return true;
-      }
-      ros::WallDuration(0.05).sleep();
-    } while (ros::WallTime::now() < end);
-    return false;
+    return test::waitForLog(mutex_, logs_, text, level, timeout_s);
   }
 
  private:

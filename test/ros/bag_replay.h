@@ -18,6 +18,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
@@ -262,6 +263,20 @@ inline double median(std::vector<double> v) {
   if (v.empty()) return std::nan("");
   std::sort(v.begin(), v.end());
   return v[v.size() / 2];
+}
+
+/// main() of the replay rostests: gtest with ROS and a two-thread spinner; `release` frees what
+/// the tests kept (subscribers, child processes) while the spinner still runs.
+inline int runReplayTests(int argc, char** argv, const char* node_name, const std::function<void()>& release) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, node_name);
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  const int result = RUN_ALL_TESTS();
+  release();
+  spinner.stop();
+  ros::shutdown();
+  return result;
 }
 
 }  // namespace test

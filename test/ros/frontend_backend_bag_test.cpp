@@ -195,13 +195,5 @@ TEST(FrontendBackendBag, TfTreeAnswersAtRecentTimesWhileItPlays) {
 }
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "frontend_backend_bag_test");
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  const int result = RUN_ALL_TESTS();
-  replay.reset();
-  spinner.stop();
-  ros::shutdown();
-  return result;
+  return runReplayTests(argc, argv, "frontend_backend_bag_test", [] { replay.reset(); });
 }

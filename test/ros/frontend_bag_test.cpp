@@ -114,13 +114,5 @@ TEST(FrontendBag, YawRatesAgreeWithGroundTruth) {
 }
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "frontend_bag_test");
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  const int result = RUN_ALL_TESTS();
-  replay.reset();
-  spinner.stop();
-  ros::shutdown();
-  return result;
+  return runReplayTests(argc, argv, "frontend_bag_test", [] { replay.reset(); });
 }

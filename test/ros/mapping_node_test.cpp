@@ -23,6 +23,7 @@
 #include "vwe_vo/core/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/topics.h"
+#include "log_watch.h"
 
 using namespace vwe_vo;
 
@@ -160,16 +161,7 @@ class Harness {
   }
   /// True if the node logged a line containing `text` at `level` or above.
   bool logged(const std::string& text, uint8_t level, double timeout_s = 5.0) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
-    do {
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        for (const rosgraph_msgs::Log& l : logs_)
-          if (l.level >= level && l.msg.find(text) != std::string::npos) return true;
-      }
-      ros::WallDuration(0.05).sleep();
-    } while (ros::WallTime::now() < end);
-    return false;
+    return test::waitForLog(mutex_, logs_, text, level, timeout_s);
   }
 
  private:

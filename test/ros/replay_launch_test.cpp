@@ -174,13 +174,5 @@ TEST(ReplayLaunch, OdometryAsAccurateAsTheOfflineRunner) {
 }
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "replay_launch_test");
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  const int result = RUN_ALL_TESTS();
-  replay.reset();
-  spinner.stop();
-  ros::shutdown();
-  return result;
+  return runReplayTests(argc, argv, "replay_launch_test", [] { replay.reset(); });
 }
