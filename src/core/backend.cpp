@@ -506,4 +506,21 @@ Trajectory3 Backend::sampleTrajectory(double rate_hz) const {
   return out;
 }
 
+bool ContinuousOdometry::next(const Backend& backend, int64_t t_ns, Pose3* T_odom_base, double* v,
+                              double* omega) {
+  Pose3 T_best;
+  if (!backend.poseAt(t_ns, &T_best, v, omega)) return false;
+  Pose3 T_was;
+  if (has_previous_ && t_ns > t_previous_ns_ && backend.poseAt(t_previous_ns_, &T_was, nullptr, nullptr)) {
+    // The motion since the previous output as the back-end sees it now, on the output so far.
+    *T_odom_base = Pose3(T_previous_ * (T_was.inverse() * T_best));
+  } else {
+    *T_odom_base = T_best;  // the first pose, or the previous one left the back-end's span
+  }
+  has_previous_ = true;
+  t_previous_ns_ = t_ns;
+  T_previous_ = *T_odom_base;
+  return true;
+}
+
 }  // namespace vwe_vo

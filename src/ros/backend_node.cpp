@@ -200,6 +200,7 @@ void BackendNode::resetBackend(const std::string& why) {
   backend_->reset();
   reported_resets_ = backend_->stats().resets;
   next_odom_ns_ = -1;
+  odometry_.reset();
   have_good_arc_ = false;
   path_.poses.clear();
   ROS_WARN("backend_node: %s: back-end reset, the trajectory restarts at the identity (reset %zu)",
@@ -219,6 +220,7 @@ void BackendNode::handleEvents(const EventVector& events) {
     ++loops_;
     reported_resets_ = backend_->stats().resets;
     next_odom_ns_ = -1;
+    odometry_.reset();
     have_good_arc_ = false;
     path_.poses.clear();
     ROS_WARN(
@@ -272,6 +274,7 @@ void BackendNode::handleArc(ArcEstimate arc) {
     ++loops_;
     reported_resets_ = backend_->stats().resets;
     next_odom_ns_ = -1;
+    odometry_.reset();
     path_.poses.clear();
     ROS_WARN("backend_node: arc time jumped back to %.3f s (from %.3f s; a looped bag?): back-end "
              "reset, the trajectory restarts at the identity (reset %zu)",
@@ -323,7 +326,7 @@ void BackendNode::publishOdometry() {
   for (; next_odom_ns_ >= 0 && next_odom_ns_ <= newest_arc_ns_; next_odom_ns_ += step) {
     Pose3 T;
     double v = 0.0, omega = 0.0;
-    if (!backend_->poseAt(next_odom_ns_, &T, &v, &omega)) continue;
+    if (!odometry_.next(*backend_, next_odom_ns_, &T, &v, &omega)) continue;
     nav_msgs::Odometry odom;
     odom.header.stamp = toRosTime(next_odom_ns_);
     odom.header.frame_id = frames::kOdom;

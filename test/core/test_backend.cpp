@@ -289,6 +289,55 @@ TEST(Backend, RefinementReducesTheRotationErrorOfBiasedArcs) {
   for (const StampedPose& p : traj) ASSERT_TRUE(p.T.matrix().allFinite());
 }
 
+// The odometry stream (/vwe/odom, tf odom -> base_link) of a back-end that refines biased arcs as
+// they come: Backend::poseAt re-anchors on every refinement (a jump), ContinuousOdometry does not
+// (REP-105), and its increments are the back-end's current estimate of the motion.
+TEST(Backend, ContinuousOdometryHasNoJumpsAtRefinements) {
+  Scene sc;
+  const std::vector<ArcEstimate> arcs = truthArcs(*sc.truth, 3.0 * kPi / 180);
+  Backend backend(testOptions(), sc.cam, testExtrinsics());
+  ContinuousOdometry odometry;
+  const int64_t step = secToNs(0.02);
+  int64_t next = arcs.front().t_start_ns;
+  size_t e = 0, outputs = 0;
+  double max_raw_step = 0, max_continuous_step = 0, max_increment_error = 0;
+  Pose3 raw_prev, out_prev;
+  for (const ArcEstimate& a : arcs) {
+    EventVector chunk;
+    while (e < sc.events.size() && sc.events[e].t_ns <= a.t_end_ns) chunk.push_back(sc.events[e++]);
+    backend.addEvents(chunk);
+    backend.addArc(a);
+    backend.process();
+    for (; next <= a.t_end_ns; next += step) {
+      Pose3 raw, out;
+      ASSERT_TRUE(backend.poseAt(next, &raw, nullptr, nullptr));
+      ASSERT_TRUE(odometry.next(backend, next, &out, nullptr, nullptr));
+      ASSERT_TRUE(out.matrix().allFinite());
+      if (outputs > 0) {
+        max_raw_step = std::max(max_raw_step, (raw.translation() - raw_prev.translation()).norm());
+        max_continuous_step = std::max(max_continuous_step, (out.translation() - out_prev.translation()).norm());
+        // The increment is the current estimate's motion over the step.
+        Pose3 was;
+        ASSERT_TRUE(backend.poseAt(next - step, &was, nullptr, nullptr));
+        const Pose3 d_est = was.inverse() * raw, d_out = out_prev.inverse() * out;
+        max_increment_error = std::max(max_increment_error, (d_est.translation() - d_out.translation()).norm());
+      }
+      raw_prev = raw;
+      out_prev = out;
+      ++outputs;
+    }
+  }
+  std::printf("[backend] odometry: %zu poses, largest step %.4f m raw, %.4f m continuous (%.4f m at %.1f m/s)\n",
+              outputs, max_raw_step, max_continuous_step, kSpeed * 0.02, kSpeed);
+  EXPECT_GE(backend.stats().updates, 3u);
+  EXPECT_GT(outputs, 100u);
+  // 0.4 m/s x 20 ms = 8 mm a step: the continuous stream never moves more than that (+5 %) ...
+  EXPECT_LT(max_continuous_step, 1.05 * kSpeed * 0.02);
+  // ... while the re-anchored poses jump at refinements (what the test guards against).
+  EXPECT_GT(max_raw_step, 1.25 * kSpeed * 0.02);  // measured 1.6x
+  EXPECT_LT(max_increment_error, 1e-9);
+}
+
 TEST(Backend, StandstillGivesFinitePosesAndSkipsVolumes) {
   Scene sc;
   std::vector<ArcEstimate> arcs = truthArcs(*sc.truth, 0.0);

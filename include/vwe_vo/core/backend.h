@@ -213,4 +213,22 @@ class Backend {
   BackendStats stats_;
 };
 
+/// Odometry as REP-105 wants it: continuous, no jumps. Each output pose is the previous output
+/// composed with the back-end's current best estimate of the motion since then, so a refinement
+/// changes the increments that follow it, never a pose already published (Backend::poseAt
+/// re-anchors on every refinement, which would make odom -> base_link jump). The refined
+/// trajectory itself is the spline (/vwe/path, backend.tum).
+class ContinuousOdometry {
+ public:
+  /// Pose of base_link at t_ns (later than the previous call's), with speed and yaw rate (may be
+  /// null). False if the back-end has no pose at t_ns.
+  bool next(const Backend& backend, int64_t t_ns, Pose3* T_odom_base, double* v, double* omega);
+  void reset() { has_previous_ = false; }
+
+ private:
+  bool has_previous_ = false;
+  int64_t t_previous_ns_ = 0;
+  Pose3 T_previous_ = Pose3::Identity();
+};
+
 }  // namespace vwe_vo
