@@ -18,6 +18,7 @@ for tool in Xvfb import roslaunch; do
   command -v "$tool" >/dev/null || { echo "rviz_screenshot: $tool not found (apt-get install xvfb imagemagick)"; exit 1; }
 done
 [ -f "$bag" ] || { echo "rviz_screenshot: no bag $bag"; exit 1; }
+bag="$(realpath "$bag")"  # rosbag play runs in ~/.ros: a relative path would not open
 
 display=":99"
 port=$(( 11700 + RANDOM % 200 ))  # a private master: never the user's roscore
