@@ -78,6 +78,15 @@ struct Scene {
   }
 };
 
+/// The pipeline's order: the events up to the arc's end (from index *next on), then the arc.
+void feed(Backend* backend, const EventVector& events, size_t* next, const ArcEstimate& arc) {
+  EventVector chunk;
+  while (*next < events.size() && events[*next].t_ns <= arc.t_end_ns) chunk.push_back(events[(*next)++]);
+  backend->addEvents(chunk);
+  backend->addArc(arc);
+  backend->process();
+}
+
 /// Front-end-like arcs every 0.1 s from the truth, with a yaw-rate bias [rad/s].
 std::vector<ArcEstimate> truthArcs(const BSpline& truth, double bias) {
   std::vector<ArcEstimate> arcs;
@@ -246,13 +255,7 @@ TEST(Backend, RefinementReducesTheRotationErrorOfBiasedArcs) {
   // Feed in 0.1 s chunks: events then the arc of that window (as the pipeline does).
   size_t e = 0;
   const auto t0 = std::chrono::steady_clock::now();
-  for (const ArcEstimate& a : arcs) {
-    EventVector chunk;
-    while (e < sc.events.size() && sc.events[e].t_ns <= a.t_end_ns) chunk.push_back(sc.events[e++]);
-    backend.addEvents(chunk);
-    backend.addArc(a);
-    backend.process();
-  }
+  for (const ArcEstimate& a : arcs) feed(&backend, sc.events, &e, a);
   backend.finish();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   ASSERT_TRUE(backend.hasSpline());
@@ -303,11 +306,7 @@ TEST(Backend, ContinuousOdometryHasNoJumpsAtRefinements) {
   double max_raw_step = 0, max_continuous_step = 0, max_increment_error = 0;
   Pose3 raw_prev, out_prev;
   for (const ArcEstimate& a : arcs) {
-    EventVector chunk;
-    while (e < sc.events.size() && sc.events[e].t_ns <= a.t_end_ns) chunk.push_back(sc.events[e++]);
-    backend.addEvents(chunk);
-    backend.addArc(a);
-    backend.process();
+    feed(&backend, sc.events, &e, a);
     for (; next <= a.t_end_ns; next += step) {
       Pose3 raw, out;
       ASSERT_TRUE(backend.poseAt(next, &raw, nullptr, nullptr));

@@ -6,7 +6,7 @@
 
 #include "frontend_node_harness.h"
 #include "vwe_vo/SplineTrajectory.h"
-#include "log_watch.h"
+#include "node_test_util.h"
 
 using namespace vwe_vo;
 using namespace vwe_vo::test;

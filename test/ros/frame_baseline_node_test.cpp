@@ -24,7 +24,7 @@
 #include "vwe_vo/core/sim/sequences.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/topics.h"
-#include "log_watch.h"
+#include "node_test_util.h"
 
 using namespace vwe_vo;
 
@@ -277,12 +277,7 @@ TEST(FrameBaselineNode, FrameOfAnotherSizeIsRefusedWithAnError) {
 }
 
 TEST(FrameBaselineNode, CameraInfoOfAnotherSizeIsRefusedAndTheFirstKept) {
-  sensor_msgs::CameraInfo other = harness->validCameraInfo();
-  other.width = 240;
-  other.height = 180;
-  other.K[2] = 120;
-  other.K[5] = 90;
-  harness->publishCameraInfo(other);
+  harness->publishCameraInfo(test::cameraInfoOfAnotherSize(harness->validCameraInfo()));
   EXPECT_TRUE(harness->logged("camera_info is 240x180 but the calibration in use is 346x260",
                               rosgraph_msgs::Log::ERROR));
   expectTracking(harness->publish(25), 0);

@@ -19,7 +19,7 @@
 #include "vwe_vo/core/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/topics.h"
-#include "log_watch.h"
+#include "node_test_util.h"
 
 namespace vwe_vo {
 namespace test {

@@ -93,12 +93,7 @@ TEST(FrontendNode, WrongSizeEventArrayIsRefusedAndValidDataStillWorks) {
 }
 
 TEST(FrontendNode, CameraInfoOfAnotherSizeIsRefusedAndTheFirstKept) {
-  sensor_msgs::CameraInfo other = harness->validCameraInfo();
-  other.width = 240;
-  other.height = 180;
-  other.K[2] = 120;
-  other.K[5] = 90;
-  harness->publishCameraInfo(other);
+  harness->publishCameraInfo(test::cameraInfoOfAnotherSize(harness->validCameraInfo()));
   EXPECT_TRUE(harness->logged("camera_info is 240x180 but the calibration in use is 346x260",
                               rosgraph_msgs::Log::ERROR));
   const auto [t0, t1] = harness->stream(1.2);

@@ -1,9 +1,10 @@
-// Shared by the node rostests' harnesses: wait until a node has logged a line (collected from
-// /rosout by the harness) containing some text at a level or above. Header-only.
+// Shared by the node rostests: wait until a node has logged a line (collected from /rosout by the
+// harness) containing some text at a level or above; a camera_info of another size. Header-only.
 #pragma once
 
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
+#include <sensor_msgs/CameraInfo.h>
 
 #include <mutex>
 #include <string>
@@ -26,6 +27,16 @@ inline bool waitForLog(std::mutex& mutex, const std::vector<rosgraph_msgs::Log>&
     ros::WallDuration(0.05).sleep();
   } while (ros::WallTime::now() < end);
   return false;
+}
+
+/// `info` resized to 240x180 (principal point moved with it): what a node must refuse once it
+/// calibrated at another size ("camera_info is 240x180 but the calibration in use is WxH").
+inline sensor_msgs::CameraInfo cameraInfoOfAnotherSize(sensor_msgs::CameraInfo info) {
+  info.width = 240;
+  info.height = 180;
+  info.K[2] = 120;
+  info.K[5] = 90;
+  return info;
 }
 
 }  // namespace test
