@@ -37,7 +37,7 @@ BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
   path_pub_ = nh_.advertise<nav_msgs::Path>(topics::kPath, 2);
   if (node_options_.publish_tf) tf_ = std::make_unique<tf2_ros::TransformBroadcaster>();
   path_.header.frame_id = frames::kOdom;
-  if (!have_calibration_)
+  if (!inbox_.hasCalibration())
     ROS_INFO("backend_node: waiting for %s (no ~calibration given)",
              camera_info_sub_.getTopic().c_str());
   lowerCpuPriority(node_options_.nice, "backend_node");  // before the worker: it inherits it
@@ -45,11 +45,7 @@ BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
 }
 
 BackendNode::~BackendNode() {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    stop_ = true;
-  }
-  cv_.notify_all();
+  inbox_.stop();
   if (worker_.joinable()) worker_.join();
 }
 
@@ -72,8 +68,7 @@ void BackendNode::readParameters() {
   backend_options_.validate();
   T_base_cam_ = config.T_base_cam;
   if (!o.calibration_path.empty()) {
-    calibration_ = loadCameraCalibrationYaml(o.calibration_path);  // throws naming file and field
-    have_calibration_ = true;
+    inbox_.setCalibration(loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
   }
   const BackendOptions& b = backend_options_;
   ROS_INFO(
@@ -92,14 +87,9 @@ void BackendNode::readParameters() {
 void BackendNode::eventsCallback(const EventArray::ConstPtr& msg) {
   ++packets_in_;
   int width = 0, height = 0;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (!have_calibration_) {
-      ++inputs_before_calibration_;
-      return;
-    }
-    width = calibration_.width;
-    height = calibration_.height;
+  if (!inbox_.sensorSize(&width, &height)) {
+    ++inputs_before_calibration_;
+    return;
   }
   Input input;
   if (!acceptEventPacket(*msg, width, height, "backend_node", {packets_empty_, packets_wrong_size_, events_outside_msg_},
@@ -109,8 +99,7 @@ void BackendNode::eventsCallback(const EventArray::ConstPtr& msg) {
 }
 
 void BackendNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (acceptCameraInfo(*msg, "backend_node", &have_calibration_, &calibration_, camera_info_refused_)) cv_.notify_all();
+  inbox_.acceptCameraInfo(*msg, "backend_node", camera_info_refused_);
 }
 
 void BackendNode::arcCallback(const AckermannArc::ConstPtr& msg) {
@@ -122,17 +111,14 @@ void BackendNode::arcCallback(const AckermannArc::ConstPtr& msg) {
 }
 
 bool BackendNode::enqueue(Input&& input) {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (!have_calibration_) {
+  switch (inbox_.push(std::move(input), size_t(node_options_.max_queue_packets))) {
+    case CalibratedInbox<Input>::Push::kQueued:
+      return true;
+    case CalibratedInbox<Input>::Push::kNoCalibration:
       ++inputs_before_calibration_;
       return false;
-    }
-    if (queue_.size() < size_t(node_options_.max_queue_packets)) {
-      queue_.push_back(std::move(input));
-      cv_.notify_one();
-      return true;
-    }
+    case CalibratedInbox<Input>::Push::kFull:
+      break;
   }
   ++inputs_queue_full_;
   ROS_WARN_THROTTLE(5,
@@ -147,12 +133,7 @@ bool BackendNode::enqueue(Input&& input) {
 
 void BackendNode::workerLoop() {
   CameraCalibration calibration;
-  {
-    std::unique_lock<std::mutex> lock(mutex_);
-    cv_.wait(lock, [this] { return stop_ || have_calibration_; });
-    if (stop_) return;
-    calibration = calibration_;
-  }
+  if (!inbox_.waitForCalibration(&calibration)) return;
   try {
     camera_ = std::make_unique<CameraModel>(calibration);
     backend_ = std::make_unique<Backend>(backend_options_, *camera_, T_base_cam_);
@@ -163,13 +144,7 @@ void BackendNode::workerLoop() {
   last_status_ = ros::WallTime::now();
   while (true) {
     std::deque<Input> batch;
-    {
-      std::unique_lock<std::mutex> lock(mutex_);
-      cv_.wait_for(lock, std::chrono::milliseconds(100),
-                   [this] { return stop_ || !queue_.empty(); });
-      if (stop_) break;
-      batch.swap(queue_);
-    }
+    if (!inbox_.takeAll(&batch, std::chrono::milliseconds(100))) break;
     if (!batch.empty()) {
       const ros::WallTime start = ros::WallTime::now();
       bool arcs = false;

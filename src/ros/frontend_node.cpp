@@ -54,18 +54,14 @@ FrontendNode::FrontendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh
     static_tf_ = std::make_unique<tf2_ros::StaticTransformBroadcaster>();
     static_tf_->sendTransform(T);
   }
-  if (!have_calibration_)
+  if (!inbox_.hasCalibration())
     ROS_INFO("frontend_node: waiting for %s (no ~calibration given)",
              camera_info_sub_.getTopic().c_str());
   worker_ = std::thread(&FrontendNode::workerLoop, this);
 }
 
 FrontendNode::~FrontendNode() {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    stop_ = true;
-  }
-  cv_.notify_all();
+  inbox_.stop();
   if (worker_.joinable()) worker_.join();
 }
 
@@ -92,8 +88,7 @@ void FrontendNode::readParameters() {
   T_base_cam_ = config.T_base_cam;
 
   if (!o.calibration_path.empty()) {
-    calibration_ = loadCameraCalibrationYaml(o.calibration_path);  // throws naming file and field
-    have_calibration_ = true;
+    inbox_.setCalibration(loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
   }
 
   const FrontendOptions& f = frontend_options_;
@@ -123,14 +118,9 @@ void FrontendNode::readParameters() {
 void FrontendNode::eventsCallback(const EventArray::ConstPtr& msg) {
   ++packets_in_;
   int width = 0, height = 0;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (!have_calibration_) {
-      ++inputs_before_calibration_;
-      return;
-    }
-    width = calibration_.width;
-    height = calibration_.height;
+  if (!inbox_.sensorSize(&width, &height)) {
+    ++inputs_before_calibration_;
+    return;
   }
   Input input;
   if (!acceptEventPacket(*msg, width, height, "frontend_node", {packets_empty_, packets_wrong_size_, events_outside_msg_},
@@ -140,8 +130,7 @@ void FrontendNode::eventsCallback(const EventArray::ConstPtr& msg) {
 }
 
 void FrontendNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (acceptCameraInfo(*msg, "frontend_node", &have_calibration_, &calibration_, camera_info_refused_)) cv_.notify_all();
+  inbox_.acceptCameraInfo(*msg, "frontend_node", camera_info_refused_);
 }
 
 void FrontendNode::odomCallback(const nav_msgs::Odometry::ConstPtr& msg) {
@@ -178,17 +167,14 @@ void FrontendNode::trajectoryCallback(const SplineTrajectory::ConstPtr& msg) {
 }
 
 bool FrontendNode::enqueue(Input&& input) {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (!have_calibration_) {
+  switch (inbox_.push(std::move(input), size_t(node_options_.max_queue_packets))) {
+    case CalibratedInbox<Input>::Push::kQueued:
+      return true;
+    case CalibratedInbox<Input>::Push::kNoCalibration:
       ++inputs_before_calibration_;
       return false;
-    }
-    if (queue_.size() < size_t(node_options_.max_queue_packets)) {
-      queue_.push_back(std::move(input));
-      cv_.notify_one();
-      return true;
-    }
+    case CalibratedInbox<Input>::Push::kFull:
+      break;
   }
   ++packets_queue_full_;
   ROS_WARN_THROTTLE(5,
@@ -204,12 +190,7 @@ bool FrontendNode::enqueue(Input&& input) {
 
 void FrontendNode::workerLoop() {
   CameraCalibration calibration;
-  {
-    std::unique_lock<std::mutex> lock(mutex_);
-    cv_.wait(lock, [this] { return stop_ || have_calibration_; });
-    if (stop_) return;
-    calibration = calibration_;
-  }
+  if (!inbox_.waitForCalibration(&calibration)) return;
   try {
     camera_ = std::make_unique<CameraModel>(calibration);
     frontend_ = std::make_unique<Frontend>(frontend_options_, *camera_, T_base_cam_);
@@ -220,13 +201,7 @@ void FrontendNode::workerLoop() {
   last_status_ = ros::WallTime::now();
   while (true) {
     std::deque<Input> batch;
-    {
-      std::unique_lock<std::mutex> lock(mutex_);
-      cv_.wait_for(lock, std::chrono::milliseconds(100),
-                   [this] { return stop_ || !queue_.empty(); });
-      if (stop_) break;
-      batch.swap(queue_);
-    }
+    if (!inbox_.takeAll(&batch, std::chrono::milliseconds(100))) break;
     if (!batch.empty()) {
       const ros::WallTime start = ros::WallTime::now();
       for (const Input& input : batch) {

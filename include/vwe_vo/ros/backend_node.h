@@ -13,11 +13,9 @@
 #include <tf2_ros/transform_broadcaster.h>
 
 #include <atomic>
-#include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <thread>
 
@@ -27,6 +25,7 @@
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/frontend.h"
 #include "vwe_vo/core/math.h"
+#include "vwe_vo/ros/calibrated_inbox.h"
 
 namespace vwe_vo {
 
@@ -87,13 +86,7 @@ class BackendNode {
   BackendOptions backend_options_;
   Pose3 T_base_cam_ = Pose3::Identity();
 
-  // mutex_ guards everything up to the next blank line.
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  std::deque<Input> queue_;
-  bool have_calibration_ = false;
-  CameraCalibration calibration_;
-  bool stop_ = false;
+  CalibratedInbox<Input> inbox_;  // callbacks -> worker, open once calibrated
 
   std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0},
       inputs_queue_full_{0}, inputs_before_calibration_{0}, events_outside_msg_{0},

@@ -11,11 +11,9 @@
 #include <tf2_ros/static_transform_broadcaster.h>
 
 #include <atomic>
-#include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <thread>
 
@@ -25,6 +23,7 @@
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/frontend.h"
 #include "vwe_vo/core/math.h"
+#include "vwe_vo/ros/calibrated_inbox.h"
 #include "vwe_vo/core/vwe_image.h"
 
 namespace vwe_vo {
@@ -91,13 +90,7 @@ class FrontendNode {
   FrontendOptions frontend_options_;
   Pose3 T_base_cam_ = Pose3::Identity();
 
-  // mutex_ guards everything up to the next blank line (queue, calibration, stop flag).
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  std::deque<Input> queue_;
-  bool have_calibration_ = false;
-  CameraCalibration calibration_;
-  bool stop_ = false;
+  CalibratedInbox<Input> inbox_;  // callbacks -> worker, open once calibrated
 
   // Counted by the callbacks (read by the status line).
   std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0},
