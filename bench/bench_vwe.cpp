@@ -1,5 +1,5 @@
 // Throughput of the VWE: objective (+ gradient) evaluations per second and plane-votes per
-// second for a 30k-event volume, on 1 and 2 threads; and the DSI-sized voting workload of the
+// second for a 30k-event volume and the pipeline's window and volume sizes, on 1 and 2 threads; and the DSI-sized voting workload of the
 // mapper (2 M events x 100 planes at full 346x260 resolution).
 #include <benchmark/benchmark.h>
 
@@ -23,6 +23,8 @@ void BM_VweObjective(benchmark::State& state) {
   const int num_events = int(state.range(2));
   VolumeOptions vo;
   vo.num_threads = threads;
+  vo.grid_scale = state.range(3) / 100.0;
+  vo.z_min_m = 0.8;  // the front-end's and back-end's volume (config/vwe_vo.yaml)
   const auto& c = camera().calibration();
   ProjectiveVolume volume(vo, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
   VweObjective objective(camera(), &volume);
@@ -42,11 +44,13 @@ void BM_VweObjective(benchmark::State& state) {
       benchmark::Counter(double(votes) / threads, benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_VweObjective)
-    ->ArgNames({"threads", "gradient", "events"})
-    ->Args({1, 0, 30000})
-    ->Args({2, 0, 30000})
-    ->Args({2, 1, 30000})
-    ->Args({2, 0, 8000})
+    ->ArgNames({"threads", "gradient", "events", "scale_pct"})
+    ->Args({1, 0, 30000, 50})
+    ->Args({2, 0, 30000, 50})
+    ->Args({2, 1, 30000, 50})
+    ->Args({1, 0, 8000, 100})  // a front-end window of config/vwe_vo.yaml
+    ->Args({2, 0, 8000, 100})
+    ->Args({2, 1, 4000, 100})  // a back-end volume
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
@@ -90,6 +94,8 @@ BENCHMARK(BM_VotingKernel)
     ->ArgNames({"threads", "events", "planes", "scale_pct"})
     ->Args({1, 30000, 30, 50})
     ->Args({2, 30000, 30, 50})
+    ->Args({1, 8000, 30, 100})  // sparse votes: a front-end window
+    ->Args({2, 8000, 30, 100})
     ->Args({1, 2000000, 100, 100})
     ->Args({2, 2000000, 100, 100})
     ->Unit(benchmark::kMillisecond)

@@ -7,7 +7,8 @@
 
 namespace vwe_vo {
 namespace {
-constexpr int kPlaneGroup = 4;  // planes voted per pass over a large ray array
+constexpr int kPlaneGroup = 4;         // planes voted per pass over a large ray array
+constexpr int kSensitivityChunks = 4;  // plane chunks of varianceOfRays()
 }  // namespace
 
 void VolumeOptions::validate() const {
@@ -56,134 +57,174 @@ ProjectiveVolume::ProjectiveVolume(const VolumeOptions& options, int sensor_widt
 }
 
 template <typename Fn>
-inline void ProjectiveVolume::forEachVote(const VolumeRay& r, int l, Fn&& fn) const {
-  const float rho = float(rho_[l]);
+inline void ProjectiveVolume::forEachPlaneVote(const VolumeRay& r, float rho, Fn&& fn) const {
   if (!(rho < r.rho_max)) return;
   const float u = r.u0 + rho * r.du, v = r.v0 + rho * r.dv;
   if (!(u >= 0.0f && v >= 0.0f && u < float(width_ - 1) && v < float(height_ - 1))) return;
   const int ix = int(u), iy = int(v);
-  const float ax = u - float(ix), ay = v - float(iy);
-  const size_t idx = (size_t(l) * height_ + iy) * width_ + ix;
-  fn(idx, ax, ay);
+  fn(size_t(iy) * width_ + ix, u - float(ix), v - float(iy));
+}
+
+template <typename Fn>
+inline void ProjectiveVolume::forEachVote(const VolumeRay& r, int l, Fn&& fn) const {
+  const size_t offset = size_t(l) * width_ * height_;
+  forEachPlaneVote(r, float(rho_[l]), [&](size_t idx, float ax, float ay) { fn(offset + idx, ax, ay); });
 }
 
 size_t ProjectiveVolume::vote(const std::vector<VolumeRay>& rays) {
-  const int L = options_.num_planes, T = pool_.numThreads();
-  std::vector<double> sums(T, 0.0), sqs(T, 0.0);
-  std::vector<size_t> counts(T, 0);
-  float* g = grid_.data();
+  if (grid_.empty()) grid_.assign(numVoxels(), 0.0f);
+  const int L = options_.num_planes;
   const size_t W = size_t(width_);
-  // Sum of squares: accumulated vote by vote when the votes are few, or by one pass over the
-  // plane afterwards when that is cheaper (more than a quarter of the plane would be touched).
-  // Either way the cost is bounded by the votes, never more than the grid.
-  const size_t plane_voxels = size_t(width_) * height_;
-  const bool scan_planes = 4 * rays.size() >= plane_voxels;
+  float* g = grid_.data();
   // Many rays (the DSI, big volumes): the ray array no longer fits in cache and streaming it
   // once per plane makes voting memory-bound; each pass over the rays serves a group of planes.
-  const int group = scan_planes ? kPlaneGroup : 1;
+  const bool many_rays = 4 * rays.size() >= size_t(width_) * height_;
+  const int group = many_rays ? kPlaneGroup : 1;
   const int num_groups = (L + group - 1) / group;
-  pool_.run(num_groups, [&](int chunk, int t) {
+  plane_counts_.assign(size_t(num_groups), 0);
+  pool_.run(num_groups, [&](int chunk, int) {
     const int l0 = chunk * group, l1 = std::min(L, l0 + group);
-    double s = 0.0, q = 0.0;
     size_t n = 0;
-    if (scan_planes) {
-      for (const VolumeRay& r : rays) {
-        for (int l = l0; l < l1; ++l) {
-          forEachVote(r, l, [&](size_t idx, float ax, float ay) {
-            g[idx] += (1 - ax) * (1 - ay);
-            g[idx + 1] += ax * (1 - ay);
-            g[idx + W] += (1 - ax) * ay;
-            g[idx + W + 1] += ax * ay;
-            ++n;
-          });
-        }
-      }
-      for (int l = l0; l < l1; ++l) {
-        const float* plane = g + size_t(l) * plane_voxels;
-        float qf[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-        size_t i = 0;
-        for (; i + 8 <= plane_voxels; i += 8)
-          for (int k = 0; k < 8; ++k) qf[k] += plane[i + k] * plane[i + k];
-        for (; i < plane_voxels; ++i) q += double(plane[i]) * plane[i];
-        for (int k = 0; k < 8; ++k) q += qf[k];
-      }
-      s = double(n);
+    // Only the four read-modify-writes per vote: the sum of squares is gathered by clear().
+    auto add = [&](size_t idx, float ax, float ay) {
+      g[idx] += (1 - ax) * (1 - ay);
+      g[idx + 1] += ax * (1 - ay);
+      g[idx + W] += (1 - ax) * ay;
+      g[idx + W + 1] += ax * ay;
+      ++n;
+    };
+    if (group == 1) {
+      for (const VolumeRay& r : rays) forEachVote(r, l0, add);
     } else {
-      for (int l = l0; l < l1; ++l) {
-        for (const VolumeRay& r : rays) {
-          forEachVote(r, l, [&](size_t idx, float ax, float ay) {
-            const float w[4] = {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay};
-            const size_t id[4] = {idx, idx + 1, idx + W, idx + W + 1};
-            for (int c = 0; c < 4; ++c) {
-              const float old = g[id[c]];
-              g[id[c]] = old + w[c];
-              q += double(w[c]) * (2.0 * double(old) + double(w[c]));
-            }
-            ++n;
-          });
-        }
-      }
-      s = double(n);
+      for (const VolumeRay& r : rays)
+        for (int l = l0; l < l1; ++l) forEachVote(r, l, add);
     }
-    sums[t] += s;
-    sqs[t] += q;
-    counts[t] += n;
+    plane_counts_[size_t(chunk)] = n;
   });
   size_t votes = 0;
-  for (int t = 0; t < T; ++t) {
-    sum_ += sums[t];
-    sum_sq_ += sqs[t];
-    votes += counts[t];
-  }
+  for (size_t n : plane_counts_) votes += n;
+  sum_ += double(votes);  // every vote adds weights summing to one
   last_votes_ += votes;
   return votes;
 }
 
 double ProjectiveVolume::variance() const {
+  double q = 0.0;
+  for (float v : grid_) q += double(v) * v;
+  return varianceOf(q);
+}
+
+double ProjectiveVolume::varianceOf(double sum_squares) const {
   const double n = double(numVoxels());
   const double mean = sum_ / n;
-  return sum_sq_ / n - mean * mean;
+  return sum_squares / n - mean * mean;
 }
 
-void ProjectiveVolume::varianceRaySensitivities(const std::vector<VolumeRay>& rays,
-                                                std::vector<Eigen::Vector4d>* out) const {
+double ProjectiveVolume::varianceOfRays(const std::vector<VolumeRay>& rays, size_t* votes,
+                                        std::vector<Eigen::Vector4d>* sensitivities) {
   const int L = options_.num_planes, T = pool_.numThreads();
-  const float mean = float(sum_ / double(numVoxels()));
-  const size_t W = size_t(width_);
-  std::vector<std::vector<Eigen::Vector4d>> per_thread(T, std::vector<Eigen::Vector4d>(rays.size(), Eigen::Vector4d::Zero()));
-  const float* g = grid_.data();
-  pool_.run(L, [&](int l, int t) {
-    const double rho = rho_[l];
-    auto& acc = per_thread[t];
-    for (size_t i = 0; i < rays.size(); ++i) {
-      forEachVote(rays[i], l, [&](size_t idx, float ax, float ay) {
-        const float r00 = g[idx] - mean, r10 = g[idx + 1] - mean, r01 = g[idx + W] - mean, r11 = g[idx + W + 1] - mean;
-        // d(sum_c r_c w_c)/du and /dv for the bilinear weights w_c(ax, ay).
-        const double gu = double((r10 - r00) * (1 - ay) + (r11 - r01) * ay);
-        const double gv = double((r01 - r00) * (1 - ax) + (r11 - r10) * ax);
-        acc[i] += Eigen::Vector4d(gu, gu * rho, gv, gv * rho);
-      });
+  const size_t W = size_t(width_), plane_voxels = W * height_, N = rays.size();
+  if (scratch_.size() < size_t(T)) scratch_.resize(size_t(T));
+  for (auto& plane : scratch_)
+    if (plane.size() != plane_voxels) plane.assign(plane_voxels, 0.0f);
+  // A fixed number of plane chunks (not one per thread): the sums, and their order, do not
+  // depend on the thread count.
+  const int num_chunks = std::min(L, kSensitivityChunks);
+  if (sensitivities) {
+    chunk_sens_.resize(size_t(num_chunks));
+    for (auto& acc : chunk_sens_) acc.assign(N, Eigen::Vector4d::Zero());
+  }
+  plane_counts_.assign(size_t(L), 0);
+  plane_squares_.assign(size_t(L), 0.0);
+  pool_.run(num_chunks, [&](int c, int t) {
+    float* g = scratch_[size_t(t)].data();
+    const int l0 = L * c / num_chunks, l1 = L * (c + 1) / num_chunks;
+    for (int l = l0; l < l1; ++l) {
+      const float rho = float(rho_[l]);
+      size_t n = 0;
+      for (const VolumeRay& r : rays)
+        forEachPlaneVote(r, rho, [&](size_t idx, float ax, float ay) {
+          g[idx] += (1 - ax) * (1 - ay);
+          g[idx + 1] += ax * (1 - ay);
+          g[idx + W] += (1 - ax) * ay;
+          g[idx + W + 1] += ax * ay;
+          ++n;
+        });
+      if (sensitivities) {
+        // d(sum_c V_c w_c)/du and /dv for the bilinear weights w_c(ax, ay). The mean of the
+        // volume drops out: the weights' derivatives sum to zero.
+        Eigen::Vector4d* acc = chunk_sens_[size_t(c)].data();
+        const double drho = rho_[l];
+        for (size_t i = 0; i < N; ++i)
+          forEachPlaneVote(rays[i], rho, [&](size_t idx, float ax, float ay) {
+            const float v00 = g[idx], v10 = g[idx + 1], v01 = g[idx + W], v11 = g[idx + W + 1];
+            const double gu = double((v10 - v00) * (1 - ay) + (v11 - v01) * ay);
+            const double gv = double((v01 - v00) * (1 - ax) + (v11 - v10) * ax);
+            acc[i] += Eigen::Vector4d(gu, gu * drho, gv, gv * drho);
+          });
+      }
+      plane_counts_[size_t(l)] = n;
+      plane_squares_[size_t(l)] = takeSquares(g, rays, rho, n);
     }
   });
-  out->assign(rays.size(), Eigen::Vector4d::Zero());
-  for (int t = 0; t < T; ++t)
-    for (size_t i = 0; i < rays.size(); ++i) (*out)[i] += per_thread[t][i];
+  if (sensitivities) {
+    sensitivities->assign(N, Eigen::Vector4d::Zero());
+    for (const auto& acc : chunk_sens_)
+      for (size_t i = 0; i < N; ++i) (*sensitivities)[i] += acc[i];
+  }
+  size_t n = 0;
+  double q = 0.0;
+  for (int l = 0; l < L; ++l) n += plane_counts_[size_t(l)], q += plane_squares_[size_t(l)];
+  if (votes) *votes = n;
+  const double nv = double(numVoxels()), mean = double(n) / nv;
+  return q / nv - mean * mean;
 }
 
-void ProjectiveVolume::clear(const std::vector<VolumeRay>& rays) {
-  // Zero what the votes touched, or whole planes when that is cheaper.
-  if (4 * last_votes_ >= numVoxels()) {
-    std::fill(grid_.begin(), grid_.end(), 0.0f);
-  } else {
-    float* g = grid_.data();
-    const size_t W = size_t(width_);
-    pool_.run(options_.num_planes, [&](int l, int) {
-      for (const VolumeRay& r : rays)
-        forEachVote(r, l, [&](size_t idx, float, float) { g[idx] = g[idx + 1] = g[idx + W] = g[idx + W + 1] = 0.0f; });
-    });
+double ProjectiveVolume::takeSquares(float* plane, const std::vector<VolumeRay>& rays, float rho,
+                                     size_t votes) const {
+  const size_t W = size_t(width_), plane_voxels = W * height_;
+  if (4 * votes >= plane_voxels) {
+    // Dense votes: one sweep over the plane.
+    float q8[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    double q = 0.0;
+    size_t i = 0;
+    for (; i + 8 <= plane_voxels; i += 8)
+      for (int k = 0; k < 8; ++k) q8[k] += plane[i + k] * plane[i + k];
+    for (; i < plane_voxels; ++i) q += double(plane[i]) * plane[i];
+    for (int k = 0; k < 8; ++k) q += q8[k];
+    std::fill(plane, plane + plane_voxels, 0.0f);
+    return q;
   }
-  sum_ = sum_sq_ = 0.0;
+  // Sparse votes: visit what they touched; a voxel met twice is zero the second time.
+  double q0 = 0.0, q1 = 0.0;
+  for (const VolumeRay& r : rays)
+    forEachPlaneVote(r, rho, [&](size_t idx, float, float) {
+      float* c0 = plane + idx;
+      float* c1 = c0 + W;
+      q0 += double(c0[0] * c0[0] + c0[1] * c0[1]);
+      q1 += double(c1[0] * c1[0] + c1[1] * c1[1]);
+      c0[0] = c0[1] = c1[0] = c1[1] = 0.0f;
+    });
+  return q0 + q1;
+}
+
+double ProjectiveVolume::clear(const std::vector<VolumeRay>& rays) {
+  if (grid_.empty()) return 0.0;
+  const int L = options_.num_planes;
+  const size_t plane_voxels = size_t(width_) * height_;
+  const bool dense = 4 * last_votes_ >= numVoxels();
+  plane_squares_.assign(size_t(L), 0.0);
+  pool_.run(L, [&](int l, int) {
+    // Dense votes: every plane is swept; sparse: takeSquares() visits the votes.
+    plane_squares_[size_t(l)] =
+        takeSquares(grid_.data() + size_t(l) * plane_voxels, rays, float(rho_[l]), dense ? plane_voxels : 0);
+  });
+  double q = 0.0;
+  for (double p : plane_squares_) q += p;
+  const double var = varianceOf(q);
+  sum_ = 0.0;
   last_votes_ = 0;
+  return var;
 }
 
 }  // namespace vwe_vo

@@ -132,18 +132,15 @@ VweEvaluation VweObjective::voteOnly(const EventVector& events, const Trajectory
 VweEvaluation VweObjective::evaluate(const EventVector& events, const TrajectoryModel& model,
                                      Eigen::VectorXd* gradient) {
   VweEvaluation ev = buildRays(events, model, gradient != nullptr);
-  ev.votes = volume_->vote(rays_);
-  ev.variance = volume_->variance();
+  ev.variance = volume_->varianceOfRays(rays_, &ev.votes, gradient ? &sensitivities_ : nullptr);
   if (gradient) {
     gradient->setZero(model.numParams());
-    volume_->varianceRaySensitivities(rays_, &sensitivities_);
     const double scale = 2.0 / double(volume_->numVoxels());
     for (size_t i = 0; i < rays_.size(); ++i) {
       const Eigen::Vector4d& s = sensitivities_[i];
       for (int j = jac_begin_[i]; j < jac_begin_[i + 1]; ++j) (*gradient)[jac_param_[j]] += scale * s.dot(jac_value_[j]);
     }
   }
-  volume_->clear(rays_);
   return ev;
 }
 

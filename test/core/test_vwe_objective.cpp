@@ -58,23 +58,33 @@ VolumeOptions volumeOptions(int threads) {
 
 }  // namespace
 
-TEST(VweObjective, IncrementalVarianceEqualsBruteForce) {
+TEST(VweObjective, VarianceFromClearingEqualsBruteForce) {
   const CameraModel cam(testCalibration());
-  ProjectiveVolume volume(volumeOptions(2), cam.width(), cam.height(), 250, 250, 173, 130);
-  VweObjective obj(cam, &volume);
-  const YawForwardModel truth(0.5, 0.4);
-  const EventVector ev = makeEvents(cam, truth, 3000, 1);
-  const VweEvaluation e = obj.voteOnly(ev, truth);
-  double s = 0, q = 0;
-  for (float v : volume.data()) {
-    s += v;
-    q += double(v) * v;
+  for (int threads : {1, 2}) {
+    ProjectiveVolume volume(volumeOptions(threads), cam.width(), cam.height(), 250, 250, 173, 130);
+    VweObjective obj(cam, &volume);
+    const YawForwardModel truth(0.5, 0.4);
+    // Sparse votes (clear() visits the votes) and dense ones (clear() sweeps whole planes).
+    for (int n : {3000, 400000}) {
+      const EventVector ev = makeEvents(cam, truth, n, 1);
+      const double from_clear = obj.evaluate(ev, truth).variance;
+      for (float v : volume.data()) ASSERT_EQ(v, 0.0f);
+      const VweEvaluation e = obj.voteOnly(ev, truth);
+      double s = 0, q = 0;
+      for (float v : volume.data()) {
+        s += v;
+        q += double(v) * v;
+      }
+      const double nv = double(volume.numVoxels());
+      const double brute = q / nv - (s / nv) * (s / nv);
+      EXPECT_NEAR(from_clear, brute, 1e-6 * brute) << n << " events, " << threads << " threads";
+      EXPECT_NEAR(e.variance, brute, 1e-9 * brute);
+      EXPECT_NEAR(s, double(e.votes), 1e-4 * s);  // bilinear weights sum to one per vote
+      EXPECT_GT(e.votes, size_t(n) * 10);
+      EXPECT_NEAR(volume.clear(obj.lastRays()), brute, 1e-6 * brute);
+      for (float v : volume.data()) ASSERT_EQ(v, 0.0f);
+    }
   }
-  const double n = double(volume.numVoxels());
-  EXPECT_NEAR(e.variance, q / n - (s / n) * (s / n), 1e-6 * e.variance);
-  EXPECT_GT(e.votes, 3000u * 10);
-  volume.clear(obj.lastRays());
-  for (float v : volume.data()) ASSERT_EQ(v, 0.0f);
 }
 
 TEST(VweObjective, GradientMatchesCentralFiniteDifferences) {

@@ -53,38 +53,52 @@ class ProjectiveVolume {
   double cx() const { return cx_; }
   double cy() const { return cy_; }
 
-  /// Bilinear votes of every ray into every plane it meets inside the grid (grid must be clear).
-  /// Returns the number of plane-votes cast. Afterwards sum() and sumSquares() are valid.
+  /// The optimisers' evaluation: the variance over all voxels of the volume the rays vote, and
+  /// (if sensitivities is not null) its gradient per ray, s = [S_u0, S_du, S_v0, S_dv] with
+  /// dVar/dray = (2/N) s . d[u0,du,v0,dv], N = numVoxels(). Votes plane by plane into a scratch
+  /// plane per thread that stays in cache; the grid is not touched, and the cost is bounded by
+  /// the votes (votes cast into *votes if not null).
+  double varianceOfRays(const std::vector<VolumeRay>& rays, size_t* votes,
+                        std::vector<Eigen::Vector4d>* sensitivities = nullptr);
+
+  /// The grid, for what reads the voxels (images, the EMVS DSI): bilinear votes of every ray
+  /// into every plane it meets (the grid must be clear). Returns the number of plane-votes cast;
+  /// afterwards sum() is valid.
   size_t vote(const std::vector<VolumeRay>& rays);
-  /// Sum of all voxels and sum of squares (accumulated while voting, no pass over the grid).
+  /// Sum of all voxels (every vote adds weights summing to one).
   double sum() const { return sum_; }
-  double sumSquares() const { return sum_sq_; }
-  /// Variance over all voxels: sumSquares/N - (sum/N)^2.
+  /// Variance over all voxels of what vote() put in the grid, by one pass over the grid.
   double variance() const;
+  /// Clears what vote() touched (cost bounded by the votes: whole planes only when the votes
+  /// cover them anyway) and returns the variance the votes gave the grid.
+  double clear(const std::vector<VolumeRay>& rays);
 
-  /// For the gradient of variance(): per ray, the sums over planes of (V - mean)-weighted
-  /// kernel derivatives, s = [S_u0, S_du, S_v0, S_dv] with dVar/dray = (2/N) s . d[u0,du,v0,dv].
-  /// Requires the votes of vote() to be in the grid.
-  void varianceRaySensitivities(const std::vector<VolumeRay>& rays, std::vector<Eigen::Vector4d>* s) const;
-
-  /// Clears what vote() touched (cost bounded by the votes, not the grid).
-  void clear(const std::vector<VolumeRay>& rays);
-
-  /// Voxel value (for tests, EMVS argmax, images).
+  /// Voxel value after vote() (for tests, EMVS argmax, images).
   float at(int x, int y, int l) const { return grid_[(size_t(l) * height_ + y) * width_ + x]; }
   const std::vector<float>& data() const { return grid_; }
 
  private:
   template <typename Fn>
+  void forEachPlaneVote(const VolumeRay& r, float rho, Fn&& fn) const;
+  template <typename Fn>
   void forEachVote(const VolumeRay& r, int l, Fn&& fn) const;
+  /// Sum of squares of a plane's voxels, zeroing them: by a sweep when votes cover a quarter of
+  /// the plane, otherwise by visiting the rays' votes.
+  double takeSquares(float* plane, const std::vector<VolumeRay>& rays, float rho, size_t votes) const;
 
   VolumeOptions options_;
   int width_, height_;
   double fx_, fy_, cx_, cy_;
   std::vector<double> rho_;
-  std::vector<float> grid_;
-  double sum_ = 0.0, sum_sq_ = 0.0;
+  std::vector<float> grid_;                        // allocated by the first vote()
+  std::vector<std::vector<float>> scratch_;        // one plane per thread (varianceOfRays)
+  std::vector<std::vector<Eigen::Vector4d>> chunk_sens_;
+  double varianceOf(double sum_squares) const;
+
+  double sum_ = 0.0;
   size_t last_votes_ = 0;
+  std::vector<size_t> plane_counts_;   // votes per plane (group)
+  std::vector<double> plane_squares_;  // sum of squares per plane
   mutable ThreadPool pool_;
 };
 
