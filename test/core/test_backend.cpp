@@ -109,6 +109,47 @@ double headingChangeError(const BSpline& est, const BSpline& truth, double u0, d
   return std::abs(wrapAngle(d_est - d_true));
 }
 
+/// The multi-volume objective by brute force in double precision, independent of the voting
+/// kernel: rays from the spline, bilinear votes into a dense double grid with the volume's
+/// geometry, variance per volume, summed. The kernel votes in float, whose rounding is larger
+/// than the change a step of 1e-7 m makes: central differences are taken of this reference.
+double referenceObjective(const CameraModel& cam, const ProjectiveVolume& volume, const BSpline& spline,
+                          const std::vector<BackendVolume>& volumes) {
+  const int W = volume.width(), H = volume.height(), L = volume.numPlanes();
+  std::vector<double> grid(size_t(W) * H * L);
+  double total = 0.0;
+  for (const BackendVolume& bv : volumes) {
+    std::fill(grid.begin(), grid.end(), 0.0);
+    const BSplineCameraModel model(std::make_shared<BSpline>(spline), testExtrinsics(), bv.t_ref_ns);
+    for (const PixelEvent& e : bv.events) {
+      if (!model.covers(e.t_ns)) continue;
+      const Pose3 T = model.T_Cr_Ct(e.t_ns);
+      const Vec3 o = T.translation(), d = T.linear() * cam.bearing(e.x, e.y).cast<double>();
+      if (!(d.z() > 1e-9)) continue;
+      for (int l = 0; l < L; ++l) {
+        // The point of the ray on the plane z = 1/rho, projected into the volume's pinhole.
+        const double z = 1.0 / volume.planeInverseDepth(l), lambda = (z - o.z()) / d.z();
+        if (!(lambda > 0)) continue;
+        const Vec3 X = o + lambda * d;
+        const double u = volume.fx() * X.x() / z + volume.cx(), v = volume.fy() * X.y() / z + volume.cy();
+        if (!(u >= 0 && v >= 0 && u < W - 1 && v < H - 1)) continue;
+        const int ix = int(u), iy = int(v);
+        const double ax = u - ix, ay = v - iy;
+        double* c = &grid[(size_t(l) * H + iy) * W + ix];
+        c[0] += (1 - ax) * (1 - ay);
+        c[1] += ax * (1 - ay);
+        c[W] += (1 - ax) * ay;
+        c[W + 1] += ax * ay;
+      }
+    }
+    double sum = 0.0, sq = 0.0;
+    for (double g : grid) sum += g, sq += g * g;
+    const double n = double(grid.size());
+    total += sq / n - (sum / n) * (sum / n);
+  }
+  return total;
+}
+
 }  // namespace
 
 TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
@@ -140,30 +181,34 @@ TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
   const double f0 = obj.evaluate(x0, &g);
   ASSERT_GT(f0, 0);
   ASSERT_EQ(g.size(), x0.size());
-  const double h = 1e-4;  // [m]
+  // The kernel's value is the reference's up to float rounding.
+  obj.evaluate(x0, nullptr);
+  const double f0_ref = referenceObjective(sc.cam, volume, *spline, volumes);
+  EXPECT_NEAR(f0, f0_ref, 1e-5 * f0_ref);
+  // Central differences of the reference (the bilinear kernel is piecewise smooth: a step this
+  // small crosses few voxel borders).
+  const double h = 1e-7;  // [m]
   Eigen::VectorXd fd(x0.size());
   for (int k = 0; k < x0.size(); ++k) {
     Eigen::VectorXd xp = x0, xm = x0;
     xp[k] += h;
     xm[k] -= h;
-    fd[k] = (obj.evaluate(xp, nullptr) - obj.evaluate(xm, nullptr)) / (2 * h);
+    obj.evaluate(xp, nullptr);
+    const double fp = referenceObjective(sc.cam, volume, *spline, volumes);
+    obj.evaluate(xm, nullptr);
+    const double fm = referenceObjective(sc.cam, volume, *spline, volumes);
+    fd[k] = (fp - fm) / (2 * h);
   }
-  // The float grid and the kinks of the bilinear kernel leave a few per cent of noise in the
-  // differences; the test bounds the error of each component by a fraction of |g|.
   double max_rel = 0.0;
   for (int k = 0; k < x0.size(); ++k) {
     const double rel = std::abs(g[k] - fd[k]) / fd.norm();
     max_rel = std::max(max_rel, rel);
-    EXPECT_LT(rel, 0.05) << "param " << k << " analytic " << g[k] << " fd " << fd[k];
+    EXPECT_LT(rel, 1e-3) << "param " << k << " analytic " << g[k] << " fd " << fd[k];
   }
   const double rel_norm = (g - fd).norm() / fd.norm();
-  const double cosine = g.dot(fd) / (g.norm() * fd.norm());
-  EXPECT_LT(rel_norm, 0.05);
-  EXPECT_GT(cosine, 0.998);
-  std::printf(
-      "[backend] FD check: %d free params, |g - fd| / |fd| = %.2e, max per component %.2e of |fd|, "
-      "cosine %.5f\n",
-      int(x0.size()), rel_norm, max_rel, cosine);
+  EXPECT_LT(rel_norm, 1e-3);
+  std::printf("[backend] FD check: %d free params, |g - fd| / |fd| = %.2e, max per component %.2e of |fd|\n",
+              int(x0.size()), rel_norm, max_rel);
   // The fixed control points are not touched.
   obj.evaluate(x0, nullptr);
   for (int i = 0; i < first_free; ++i)
