@@ -34,9 +34,11 @@ void BM_MultiVolumeObjective(benchmark::State& state) {
   const int num_volumes = int(state.range(0));
   const int events_per_volume = int(state.range(1));
   const bool with_gradient = state.range(2) != 0;
-  const auto& c = camera().calibration();
-  ProjectiveVolume volume(VolumeOptions(), c.width, c.height, c.fx, c.fy, c.cx, c.cy);
-  VweObjective vwe(camera(), &volume);
+  VolumeOptions vo;  // the back-end's volume in config/vwe_vo.yaml
+  vo.grid_scale = 1.0;
+  vo.z_min_m = 0.8;
+  vo.num_threads = int(state.range(3));
+  VweObjectivePool vwe(camera(), vo);
   auto truth = curve();
   std::vector<BackendVolume> volumes;
   for (int i = 0; i < num_volumes; ++i) {
@@ -59,10 +61,11 @@ void BM_MultiVolumeObjective(benchmark::State& state) {
   state.counters["free_params"] = double(objective.numFree());
 }
 BENCHMARK(BM_MultiVolumeObjective)
-    ->ArgNames({"volumes", "events", "gradient"})
-    ->Args({10, 20000, 1})
-    ->Args({10, 20000, 0})
-    ->Args({10, 4000, 1})
+    ->ArgNames({"volumes", "events", "gradient", "threads"})
+    ->Args({10, 20000, 1, 2})
+    ->Args({10, 20000, 0, 2})
+    ->Args({10, 4000, 1, 1})
+    ->Args({10, 4000, 1, 2})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

@@ -45,12 +45,12 @@ void BackendOptions::validate() const {
 
 MultiVolumeObjective::MultiVolumeObjective(std::shared_ptr<BSpline> spline, const Pose3& T_base_cam,
                                            int first_free, std::vector<BackendVolume> volumes,
-                                           VweObjective* objective)
+                                           VweObjectivePool* objectives)
     : spline_(std::move(spline)),
       T_base_cam_(T_base_cam),
       first_free_(first_free),
       volumes_(std::move(volumes)),
-      objective_(objective) {
+      objectives_(objectives) {
   if (first_free_ < 0 || first_free_ > spline_->numControlPoints())
     throw std::invalid_argument("MultiVolumeObjective: first_free " + std::to_string(first_free_) +
                                 " outside [0, " + std::to_string(spline_->numControlPoints()) +
@@ -71,14 +71,19 @@ double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::Vect
   for (int i = first_free_; i < spline_->numControlPoints(); ++i)
     spline_->setControlPoint(i, params.segment<2>(2 * (i - first_free_)));
   ++evaluations_;
+  const int n = int(volumes_.size());
+  variances_.assign(size_t(n), 0.0);
+  full_gradients_.resize(size_t(n));
+  objectives_->run(n, [&](int i, VweObjective& objective) {
+    const BackendVolume& v = volumes_[size_t(i)];
+    const BSplineCameraModel model(spline_, T_base_cam_, v.t_ref_ns);
+    variances_[size_t(i)] = objective.evaluate(v.events, model, gradient ? &full_gradients_[size_t(i)] : nullptr).variance;
+  });
   if (gradient) gradient->setZero(numFree());
   double sum = 0.0;
-  for (const BackendVolume& v : volumes_) {
-    const BSplineCameraModel model(spline_, T_base_cam_, v.t_ref_ns);
-    const VweEvaluation e =
-        objective_->evaluate(v.events, model, gradient ? &full_gradient_ : nullptr);
-    sum += e.variance;
-    if (gradient) *gradient += full_gradient_.tail(numFree());
+  for (int i = 0; i < n; ++i) {
+    sum += variances_[size_t(i)];
+    if (gradient) *gradient += full_gradients_[size_t(i)].tail(numFree());
   }
   return sum;
 }
@@ -220,10 +225,7 @@ Backend::Backend(const BackendOptions& options, const CameraModel& camera, const
     : options_(options),
       camera_(camera),
       T_base_cam_(T_base_cam),
-      volume_((options.validate(), options.volume), camera.width(), camera.height(),
-              camera.calibration().fx, camera.calibration().fy, camera.calibration().cx,
-              camera.calibration().cy),
-      objective_(camera_, &volume_) {}
+      objectives_(camera_, (options.validate(), options.volume)) {}
 
 void Backend::reset() {
   buffer_.clear();
@@ -434,7 +436,7 @@ void Backend::refine(int64_t t_new_ns) {
   if (volumes.empty()) return;
   stats_.volumes += volumes.size();
 
-  MultiVolumeObjective objective(spline_, T_base_cam_, first_free, std::move(volumes), &objective_);
+  MultiVolumeObjective objective(spline_, T_base_cam_, first_free, std::move(volumes), &objectives_);
   const Eigen::VectorXd params0 = objective.freeParams();
   const double f0 = objective.evaluate(params0, nullptr);
   if (!(f0 > 0) || !std::isfinite(f0)) return;

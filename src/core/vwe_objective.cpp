@@ -144,4 +144,19 @@ VweEvaluation VweObjective::evaluate(const EventVector& events, const Trajectory
   return ev;
 }
 
+VweObjectivePool::VweObjectivePool(const CameraModel& camera, const VolumeOptions& options)
+    : pool_((options.validate(), options.num_threads)) {
+  VolumeOptions single = options;
+  single.num_threads = 1;
+  const CameraCalibration& c = camera.calibration();
+  for (int t = 0; t < pool_.numThreads(); ++t) {
+    volumes_.push_back(std::make_unique<ProjectiveVolume>(single, c.width, c.height, c.fx, c.fy, c.cx, c.cy));
+    objectives_.push_back(std::make_unique<VweObjective>(camera, volumes_.back().get()));
+  }
+}
+
+void VweObjectivePool::run(int n, const std::function<void(int, VweObjective&)>& fn) {
+  pool_.run(n, [&](int i, int t) { fn(i, *objectives_[size_t(t)]); });
+}
+
 }  // namespace vwe_vo

@@ -159,8 +159,9 @@ TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
   // default 8 px margin on this scene).
   VolumeOptions vo = testOptions().volume;
   vo.margin_px = 100;
-  ProjectiveVolume volume(vo, sc.cam.width(), sc.cam.height(), 250, 250, 173, 130);
-  VweObjective vwe(sc.cam, &volume);
+  vo.num_threads = 2;
+  VweObjectivePool vwe(sc.cam, vo);
+  const ProjectiveVolume& volume = vwe.volume();
   // A perturbed copy of the truth, three volumes around the middle.
   auto spline = std::make_shared<BSpline>(*sc.truth);
   for (int i = 0; i < spline->numControlPoints(); ++i)
@@ -181,6 +182,16 @@ TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
   const double f0 = obj.evaluate(x0, &g);
   ASSERT_GT(f0, 0);
   ASSERT_EQ(g.size(), x0.size());
+  // One volume per thread: the same sums, in the same order, on one thread.
+  {
+    VolumeOptions one = vo;
+    one.num_threads = 1;
+    VweObjectivePool serial(sc.cam, one);
+    MultiVolumeObjective obj1(spline, testExtrinsics(), first_free, volumes, &serial);
+    Eigen::VectorXd g1;
+    EXPECT_EQ(obj1.evaluate(x0, &g1), f0);
+    EXPECT_EQ(g1, g);
+  }
   // The kernel's value is the reference's up to float rounding.
   obj.evaluate(x0, nullptr);
   const double f0_ref = referenceObjective(sc.cam, volume, *spline, volumes);

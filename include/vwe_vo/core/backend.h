@@ -69,10 +69,11 @@ struct BackendVolume {
 /// control points stacked [x, y, ...] in metres.
 class MultiVolumeObjective {
  public:
-  /// spline, objective must outlive this; the spline's free control points are overwritten by
-  /// every evaluation.
+  /// spline, objectives must outlive this; the spline's free control points are overwritten by
+  /// every evaluation. The volumes are evaluated in parallel, one per thread of the pool; the sums
+  /// run in volume order (results independent of the thread count).
   MultiVolumeObjective(std::shared_ptr<BSpline> spline, const Pose3& T_base_cam, int first_free,
-                       std::vector<BackendVolume> volumes, VweObjective* objective);
+                       std::vector<BackendVolume> volumes, VweObjectivePool* objectives);
   int numFree() const { return 2 * (spline_->numControlPoints() - first_free_); }
   int firstFree() const { return first_free_; }
   const std::vector<BackendVolume>& volumes() const { return volumes_; }
@@ -87,8 +88,9 @@ class MultiVolumeObjective {
   Pose3 T_base_cam_;
   int first_free_;
   std::vector<BackendVolume> volumes_;
-  VweObjective* objective_;
-  Eigen::VectorXd full_gradient_;
+  VweObjectivePool* objectives_;
+  std::vector<double> variances_;                // per volume
+  std::vector<Eigen::VectorXd> full_gradients_;  // per volume, w.r.t. every control point
   size_t evaluations_ = 0;
 };
 
@@ -200,8 +202,7 @@ class Backend {
   BackendOptions options_;
   const CameraModel& camera_;
   Pose3 T_base_cam_;
-  ProjectiveVolume volume_;
-  VweObjective objective_;
+  VweObjectivePool objectives_;
   EventBuffer buffer_;
   std::vector<std::pair<int64_t, int64_t>> standstills_ns_;  // merged STANDSTILL arcs
   std::unique_ptr<ArcChain> chain_;                          // front-end dead reckoning

@@ -6,6 +6,8 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <vector>
 
 #include "vwe_vo/core/camera.h"
@@ -76,6 +78,25 @@ class VweObjective {
   std::vector<int> jac_param_;
   std::vector<Eigen::Vector4d> jac_value_;
   std::vector<Eigen::Vector4d> sensitivities_;
+};
+
+/// One VweObjective per thread, each with its own single-threaded volume (options.num_threads
+/// of them): many volumes are evaluated at once, one per thread, with no synchronisation inside a
+/// volume (the back-end's multi-volume objective).
+class VweObjectivePool {
+ public:
+  VweObjectivePool(const CameraModel& camera, const VolumeOptions& options);
+  int numThreads() const { return pool_.numThreads(); }
+  /// The geometry every evaluator's volume shares.
+  const ProjectiveVolume& volume() const { return *volumes_.front(); }
+  /// Runs fn(i, objective) for i in [0, n) on the threads and returns when all are done; each
+  /// call gets the objective of the thread running it.
+  void run(int n, const std::function<void(int i, VweObjective& objective)>& fn);
+
+ private:
+  ThreadPool pool_;
+  std::vector<std::unique_ptr<ProjectiveVolume>> volumes_;
+  std::vector<std::unique_ptr<VweObjective>> objectives_;
 };
 
 }  // namespace vwe_vo
