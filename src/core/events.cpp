@@ -41,4 +41,17 @@ void EventBuffer::dropBefore(int64_t t_ns) { events_.erase(events_.begin(), even
 
 void EventBuffer::clear() { events_.clear(); }
 
+uint64_t SequenceGapCounter::observe(uint32_t seq) {
+  uint64_t gap = 0;
+  if (has_last_ && seq > last_) {
+    gap = uint64_t(seq - last_ - 1);
+  } else if (has_last_ && seq < last_) {
+    ++restarts_;
+  }
+  has_last_ = true;
+  last_ = seq;
+  missed_ += gap;
+  return gap;
+}
+
 }  // namespace vwe_vo

@@ -86,6 +86,7 @@ void BackendNode::readParameters() {
 
 void BackendNode::eventsCallback(const EventArray::ConstPtr& msg) {
   ++packets_in_;
+  countArrivingPacket(msg->header, "backend_node", &packet_sequence_, packets_lost_);
   int width = 0, height = 0;
   if (!inbox_.sensorSize(&width, &height)) {
     ++inputs_before_calibration_;
@@ -326,11 +327,11 @@ void BackendNode::logStatus() {
   ROS_INFO(
       "backend_node: %zu refinements (%zu reverted, %zu volumes, %.2f s in the solver), %zu "
       "arcs in (%zu lost/low held, %zu stale), %zu events in (%zu outside, %zu late), %zu "
-      "packets (%zu empty, %zu wrong size), %zu queue full, %zu gaps, %zu loops, %zu resets, "
+      "packets (%zu lost before the node, %zu empty, %zu wrong size), %zu queue full, %zu gaps, %zu loops, %zu resets, "
       "%zu intervals merged behind",
       s.updates, s.rejected, s.volumes, s.solver_s, arcs_in_.load(), arcs_lost_, arcs_stale_,
       s.events_in, s.events_outside + events_outside_msg_.load(), s.events_out_of_order,
-      packets_in_.load(), packets_empty_.load(), packets_wrong_size_.load(),
+      packets_in_.load(), packets_lost_.load(), packets_empty_.load(), packets_wrong_size_.load(),
       inputs_queue_full_.load(), gaps_, loops_, s.resets, refinements_merged_);
   last_status_ = now;
 }

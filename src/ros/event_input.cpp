@@ -6,6 +6,19 @@
 
 namespace vwe_vo {
 
+uint64_t countArrivingPacket(const std_msgs::Header& header, const char* node, SequenceGapCounter* sequence,
+                             std::atomic<size_t>& lost) {
+  const uint64_t gap = sequence->observe(header.seq);
+  if (gap > 0) {
+    lost += gap;
+    ROS_WARN_THROTTLE(10,
+                      "%s: %lu event packets never reached the node (gap in header.seq before %u: the subscriber "
+                      "queue overflowed, the node is too slow for the data); %zu lost so far",
+                      node, static_cast<unsigned long>(gap), header.seq, lost.load());
+  }
+  return gap;
+}
+
 bool acceptEventPacket(const EventArray& msg, int width, int height, const char* node,
                        const EventPacketCounters& counters, EventVector* events) {
   events->clear();

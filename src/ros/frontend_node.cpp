@@ -117,6 +117,7 @@ void FrontendNode::readParameters() {
 
 void FrontendNode::eventsCallback(const EventArray::ConstPtr& msg) {
   ++packets_in_;
+  countArrivingPacket(msg->header, "frontend_node", &packet_sequence_, packets_lost_);
   int width = 0, height = 0;
   if (!inbox_.sensorSize(&width, &height)) {
     ++inputs_before_calibration_;
@@ -358,13 +359,12 @@ void FrontendNode::logStatus() {
   ROS_INFO(
       "frontend_node: %zu windows (%zu ok, %zu standstill, %zu lost, %zu low events), %zu skipped "
       "behind; "
-      "%.0f events/s in, %zu outside the sensor, %zu late; packets %zu (%zu empty, %zu wrong size, "
-      "%zu queue "
-      "full); %zu resets; real-time factor %.3f",
+      "%.0f events/s in, %zu outside the sensor, %zu late; packets %zu (%zu lost before the node, %zu "
+      "empty, %zu wrong size, %zu queue full); %zu resets; real-time factor %.3f",
       s.windows, windows_ok_, windows_standstill_, windows_lost_, windows_low_, s.windows_dropped,
       double(s.events_in - last_status_events_) / wall_s,
       s.events_outside + events_outside_msg_.load(), s.events_out_of_order, packets_in_.load(),
-      packets_empty_.load(), packets_wrong_size_.load(), packets_queue_full_.load(), s.resets,
+      packets_lost_.load(), packets_empty_.load(), packets_wrong_size_.load(), packets_queue_full_.load(), s.resets,
       processed_data_s_ > 0 ? busy_wall_s_ / processed_data_s_ : 0.0);
   last_status_ = now;
   last_status_events_ = s.events_in;

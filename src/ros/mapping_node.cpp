@@ -100,6 +100,7 @@ void MappingNode::readParameters() {
 
 void MappingNode::eventsCallback(const EventArray::ConstPtr& msg) {
   ++packets_in_;
+  countArrivingPacket(msg->header, "mapping_node", &packet_sequence_, packets_lost_);
   int width = 0, height = 0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -315,13 +316,13 @@ void MappingNode::logStatus() {
   ROS_INFO(
       "mapping_node: %zu keyframes (%zu empty), global map %zu points (%zu dropped); events: %zu "
       "voted, %zu waiting, %zu not covered by the trajectory, %zu non-finite pose, %zu late, %zu "
-      "dropped waiting; packets %zu (%zu empty, %zu wrong size, %zu queue full, %zu before the "
+      "dropped waiting; packets %zu (%zu lost before the node, %zu empty, %zu wrong size, %zu queue full, %zu before the "
       "calibration); trajectories "
       "%zu (%zu refused); %zu resets; busy %.1f s",
       keyframes_, keyframes_empty_, map_->size(), map_->dropped(), counts_.voted,
       mapper_->pendingEvents(), counts_.skipped_time, counts_.skipped_nan,
       mapper_->droppedOutOfOrder(), mapper_->droppedPending(), packets_in_.load(),
-      packets_empty_.load(), packets_wrong_size_.load(), packets_queue_full_.load(),
+      packets_lost_.load(), packets_empty_.load(), packets_wrong_size_.load(), packets_queue_full_.load(),
       packets_before_calibration_.load(), splines_in_.load(), splines_refused_.load(), resets_, busy_wall_s_);
   last_status_ = now;
 }

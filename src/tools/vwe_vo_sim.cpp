@@ -211,6 +211,7 @@ int run(const Args& args) {
                calib_path.c_str());
 
   rosbag::Bag bag;
+  uint32_t packet_seq = 0;
   if (want_bag) bag.open(args.out + "/" + spec.name + ".bag", rosbag::bagmode::Write);
   auto stamp = [](int64_t t_ns) { return toRosTime(t_ns + kEpochNs); };
   std::mt19937_64 rng(spec.seed * 31 + 7);
@@ -267,7 +268,8 @@ int run(const Args& args) {
         size_t j = i;
         while (j < chunk.size() && chunk[j].t_ns <= w1) ++j;
         if (j > i) {
-          const EventArray msg = eventsToMsg(chunk, i, j, calib.width, calib.height, "davis", kEpochNs, w1);
+          EventArray msg = eventsToMsg(chunk, i, j, calib.width, calib.height, "davis", kEpochNs, w1);
+          msg.header.seq = packet_seq++;  // numbered as a recording of the driver's publisher
           bag.write("/dvs/events", msg.header.stamp, msg);
         }
         i = j;

@@ -52,4 +52,22 @@ class EventBuffer {
   size_t out_of_order_ = 0;
 };
 
+/// Messages lost before a subscriber saw them, from gaps in a publisher's sequence numbers (ROS
+/// drops the oldest message silently when a subscriber's queue is full; roscpp numbers each
+/// publisher's messages in header.seq and rosbag keeps the recorded numbers). A number that goes
+/// back (a restarted driver, a looped bag) starts counting afresh; a repeated one (messages left
+/// unnumbered) counts nothing.
+class SequenceGapCounter {
+ public:
+  /// Returns how many numbers were skipped before seq (0 when it follows the previous one).
+  uint64_t observe(uint32_t seq);
+  uint64_t missed() const { return missed_; }
+  uint64_t restarts() const { return restarts_; }
+
+ private:
+  bool has_last_ = false;
+  uint32_t last_ = 0;
+  uint64_t missed_ = 0, restarts_ = 0;
+};
+
 }  // namespace vwe_vo

@@ -88,6 +88,8 @@ class BackendNode {
 
   CalibratedInbox<Input> inbox_;  // callbacks -> worker, open once calibrated
 
+  SequenceGapCounter packet_sequence_;  // header.seq of /dvs/events (callback thread)
+  std::atomic<size_t> packets_lost_{0};  // packets ROS dropped before the callback
   std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0},
       inputs_queue_full_{0}, inputs_before_calibration_{0}, events_outside_msg_{0},
       camera_info_refused_{0}, arcs_in_{0};

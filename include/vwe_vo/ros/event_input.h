@@ -21,6 +21,12 @@ struct EventPacketCounters {
   std::atomic<size_t>& events_outside;  // events outside the packet's width x height
 };
 
+/// Counts an arriving packet against its publisher's header.seq: packets ROS dropped before the
+/// callback (a full subscriber queue) are added to `lost` and warned about (throttled), naming
+/// `node`. Call it first in the callback, for every packet. Returns the packets lost before this.
+uint64_t countArrivingPacket(const std_msgs::Header& header, const char* node, SequenceGapCounter* sequence,
+                             std::atomic<size_t>& lost);
+
 /// Converts msg into *events if it is non-empty and width x height matches the calibration;
 /// otherwise refuses it. Refusals and dropped events are counted and warned about, naming `node`
 /// and both sizes. Returns false when nothing is left to process.

@@ -82,6 +82,8 @@ class MappingNode {
   bool stop_ = false;
 
   // Counted by the callbacks (read by the status line).
+  SequenceGapCounter packet_sequence_;  // header.seq of /dvs/events (callback thread)
+  std::atomic<size_t> packets_lost_{0};  // packets ROS dropped before the callback
   std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0},
       packets_queue_full_{0}, packets_before_calibration_{0}, events_outside_msg_{0},
       camera_info_refused_{0}, splines_in_{0}, splines_refused_{0};
