@@ -18,4 +18,8 @@ for b in "$bin"/bench_*; do
        --benchmark_counters_tabular=true
 done
 [ "$found" = 1 ] || { echo "[bench] no benchmark binaries in $bin (is libbenchmark-dev installed?)"; exit 1; }
+# The whole front-end + back-end on the simulated sequences (real-time factor and accuracy).
+if [ "$filter" = "." ] || [[ "pipeline" =~ $filter ]]; then
+  /usr/bin/python3 "$(dirname "$0")/bench_pipeline.py" --ws "$ws" --out "$out"
+fi
 echo "[bench] JSON results in $out"

@@ -1,0 +1,75 @@
+#!/usr/bin/python3
+"""Pipeline benchmark: runs the front-end + back-end offline (vwe_vo_offline --no-map) on the
+simulated sequences and writes OUT/bench_pipeline.json with the real-time factor of each stage
+(processing time / data duration, on this machine), the objective evaluations, and the accuracy
+against ground truth (vwe_vo_eval). The sequences are generated once (scripts/make_sequences.sh,
+cached). Timings are only meaningful on an otherwise idle machine: the load average at the start
+is recorded next to them.
+
+    scripts/bench_pipeline.py --ws .build/ws --out out/bench [SEQUENCE ...]   (default indoor_long street_long)
+"""
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def config_for(seq):
+    # The street sequences are recorded with the car mount (as scripts/demo.sh does).
+    return os.path.join(ROOT, "config", "car.yaml" if seq.startswith("street") else "vwe_vo.yaml")
+
+
+def evaluate(binary, gt, est):
+    path = os.path.splitext(est)[0] + "_eval.json"
+    subprocess.run([binary, "--gt", gt, "--est", est, "--json", path], check=True, stdout=subprocess.DEVNULL)
+    e = json.load(open(path))
+    return {"rot_rmse_deg_s": e["rpe"]["rot_rmse_deg_s"], "rot_median_deg_s": e["rpe"]["rot_median_deg_s"],
+            "trans_dir_rmse_deg_s": e["rpe"]["trans_dir_rmse_deg_s"], "ate_percent": e["ate"]["percent_of_path"]}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--ws", default=os.path.join(ROOT, ".build", "ws"))
+    ap.add_argument("--out", default=os.path.join(ROOT, "out", "bench"))
+    ap.add_argument("sequences", nargs="*", default=["indoor_long", "street_long"])
+    a = ap.parse_args()
+    bin_dir = os.path.join(a.ws, "devel", "lib", "vwe_vo")
+    subprocess.run(["bash", os.path.join(ROOT, "scripts", "make_sequences.sh")] + a.sequences, check=True,
+                   stdout=subprocess.DEVNULL)
+    result = {"machine": {"cpus": os.cpu_count(), "processor": platform.processor() or platform.machine(),
+                          "load_average_at_start": [round(x, 2) for x in os.getloadavg()]},
+              "sequences": {}}
+    for seq in a.sequences:
+        seq_dir = os.path.join(ROOT, "out", "sequences", seq)
+        run_dir = os.path.join(a.out, "pipeline", seq)
+        os.makedirs(run_dir, exist_ok=True)
+        subprocess.run([os.path.join(bin_dir, "vwe_vo_offline"), "--bag", os.path.join(seq_dir, seq + ".bag"),
+                        "--config", config_for(seq), "--use-odom", "--no-map", "--quiet", "--out", run_dir],
+                       check=True, stdout=subprocess.DEVNULL)
+        rep = json.load(open(os.path.join(run_dir, "report.json")))
+        fe, be = rep["stages"]["frontend"], rep["stages"]["backend"]
+        gt = os.path.join(seq_dir, "groundtruth.txt")
+        ev = os.path.join(bin_dir, "vwe_vo_eval")
+        r = {"duration_s": round(rep["duration_s"], 2), "events": rep["events"],
+             "real_time_factor": {"frontend": round(fe["real_time_factor"], 3),
+                                  "backend": round(be["real_time_factor"], 3),
+                                  "frontend_plus_backend": round(fe["real_time_factor"] + be["real_time_factor"], 3)},
+             "objective_evaluations": {"frontend": fe["objective_evaluations"], "backend": be["objective_evaluations"]},
+             "frontend": evaluate(ev, gt, os.path.join(run_dir, "frontend.tum")),
+             "backend": evaluate(ev, gt, os.path.join(run_dir, "backend.tum"))}
+        result["sequences"][seq] = r
+        print("[bench] pipeline %-12s RTF front %.3f + back %.3f = %.3f; rotation RMSE front %.3f back %.3f deg/s"
+              % (seq, fe["real_time_factor"], be["real_time_factor"], r["real_time_factor"]["frontend_plus_backend"],
+                 r["frontend"]["rot_rmse_deg_s"], r["backend"]["rot_rmse_deg_s"]), flush=True)
+    path = os.path.join(a.out, "bench_pipeline.json")
+    with open(path, "w") as f:
+        json.dump(result, f, indent=1)
+    print("[bench] pipeline JSON in " + path)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
