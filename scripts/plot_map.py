@@ -76,18 +76,25 @@ def main():
 
     fig = plt.figure(figsize=(10, 8))
     ax = fig.add_subplot(projection="3d")
-    ax.scatter(xyz[:, 0], xyz[:, 1], xyz[:, 2], c=xyz[:, 2], s=0.3, cmap="viridis", vmin=lo, vmax=hi)
+    # Axes from the 1-99 % percentiles, boxed in proportion; a flat scene (a room, a street) has
+    # its height exaggerated to a third of the longest side, and the title says by how much.
+    lo_q, hi_q = np.percentile(xyz, 1, axis=0), np.percentile(xyz, 99, axis=0)
+    span = np.maximum(hi_q - lo_q, 1e-3)
+    inside = np.all((xyz >= lo_q) & (xyz <= hi_q), axis=1)  # 3D axes do not clip
+    p = xyz[inside]
+    ax.scatter(p[:, 0], p[:, 1], p[:, 2], c=p[:, 2], s=0.3, cmap="viridis", vmin=lo, vmax=hi)
     if traj is not None:
         ax.plot(traj[:, 0], traj[:, 1], traj[:, 2], "r-", lw=1.5)
-    c, r = xyz.mean(axis=0), np.percentile(np.abs(xyz - xyz.mean(axis=0)), 98, axis=0).max()
-    ax.set_xlim(c[0] - r, c[0] + r)
-    ax.set_ylim(c[1] - r, c[1] + r)
-    ax.set_zlim(c[2] - r, c[2] + r)
+    ax.set_xlim(lo_q[0], hi_q[0])
+    ax.set_ylim(lo_q[1], hi_q[1])
+    ax.set_zlim(lo_q[2], hi_q[2])
+    z_gain = max(1.0, span[:2].max() / 3.0 / span[2])
+    ax.set_box_aspect((span[0], span[1], span[2] * z_gain))
     ax.view_init(elev=25, azim=-60)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")
-    ax.set_title("perspective view")
+    ax.set_title("perspective view" + (" (height exaggerated x%.1f)" % z_gain if z_gain > 1.05 else ""))
     fig.tight_layout()
     fig.savefig(a.out_prefix + "_persp.png", dpi=120)
     print(f"wrote {a.out_prefix}_top.png and {a.out_prefix}_persp.png ({len(xyz)} points)")
