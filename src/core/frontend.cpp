@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <stdexcept>
 
 namespace vwe_vo {
@@ -9,12 +11,22 @@ namespace vwe_vo {
 namespace {
 
 /// Maximises f on [a, b] by Brent's method, starting from x0 in (a, b) with f(x0) = f0 known.
-/// Stops when the bracket is narrower than tol (or after max_iter evaluations).
+/// When f(a) = fa and f(b) = fb are known too (finite), the first step is the parabola through
+/// the three points instead of a golden-section step. Stops when the bracket is narrower than
+/// tol (or after max_iter evaluations).
 template <typename F>
-double brentMaximize(F&& f, double a, double b, double x0, double f0, double tol, int max_iter, double* f_best) {
+double brentMaximize(F&& f, double a, double b, double x0, double f0, double fa, double fb, double tol, int max_iter,
+                     double* f_best) {
   const double kGolden = 0.3819660112501051;
   double x = x0, w = x0, u = x0, fx = -f0, fw = -f0, fv = -f0, v = x0;  // minimise -f
   double d = 0.0, e = 0.0;
+  if (std::isfinite(fa) && std::isfinite(fb) && a < x0 && x0 < b) {
+    // w: the better, v: the other end; e larger than any step inside [a, b] admits the parabola.
+    const bool a_better = fa >= fb;
+    w = a_better ? a : b, fw = -(a_better ? fa : fb);
+    v = a_better ? b : a, fv = -(a_better ? fb : fa);
+    e = b - a;
+  }
   for (int it = 0; it < max_iter; ++it) {
     const double m = 0.5 * (a + b);
     const double tol1 = 0.5 * tol, tol2 = 2.0 * tol1;
@@ -82,6 +94,9 @@ void FrontendOptions::validate() const {
   if (!(omega_max_rad_s > 0 && omega_max_rad_s <= 10)) fail("omega_max_rad_s must be in (0, 10] rad/s");
   if (!(scan_half_range_rad_s > 0)) fail("scan_half_range_rad_s must be positive");
   if (!(scan_step_rad_s > 0 && scan_step_rad_s < scan_half_range_rad_s)) fail("scan_step_rad_s must be in (0, scan_half_range_rad_s)");
+  if (!(full_scan_step_rad_s >= scan_step_rad_s && full_scan_step_rad_s <= omega_max_rad_s))
+    fail("full_scan_step_rad_s must be in [scan_step_rad_s, omega_max_rad_s]");
+  if (full_scan_candidates < 1) fail("full_scan_candidates must be at least 1");
   if (!(refine_tolerance_rad_s > 0 && refine_tolerance_rad_s < scan_step_rad_s)) fail("refine_tolerance_rad_s must be in (0, scan_step_rad_s)");
   if (!(standstill_event_rate_hz >= 0)) fail("standstill_event_rate_hz must be >= 0");
   if (!(standstill_speed_mps >= 0)) fail("standstill_speed_mps must be >= 0");
@@ -219,21 +234,58 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   arc.v = v;
   arc.num_events = uint32_t(events.size());
   const double wmax = options_.omega_max_rad_s, step = options_.scan_step_rad_s;
-  auto scan = [&](double lo, double hi, double* best_w, double* best_f, double* min_f) {
+  // Every evaluated point, by omega: the scans skip points that one already covers, and the
+  // refinement brackets the best point by its evaluated neighbours.
+  std::map<double, double> f_of_w;
+  auto covered = [&](double w) {
+    const auto it = f_of_w.lower_bound(w - 0.5 * step);
+    return it != f_of_w.end() && it->first <= w + 0.5 * step;
+  };
+  auto scan = [&](double lo, double hi, double scan_step) {
     lo = std::max(lo, -wmax);
     hi = std::min(hi, wmax);
-    const int n = std::max(2, int(std::ceil((hi - lo) / step)) + 1);
+    const int n = std::max(2, int(std::ceil((hi - lo) / scan_step - 1e-9)) + 1);
     for (int i = 0; i < n; ++i) {
       const double w = lo + (hi - lo) * i / (n - 1);
-      const double f = contrast(events, t_ref_ns, w, v);
+      if (covered(w)) continue;
+      f_of_w[w] = contrast(events, t_ref_ns, w, v);
       ++arc.evaluations;
-      if (f > *best_f) *best_f = f, *best_w = w;
-      *min_f = std::min(*min_f, f);
     }
     return std::make_pair(lo, hi);
   };
-  double best_w = center, best_f = -1.0, min_f = 1e300;
-  auto range = scan(center - half_range, center + half_range, &best_w, &best_f, &min_f);
+  auto best = [&] {
+    return std::max_element(f_of_w.begin(), f_of_w.end(),
+                            [](const auto& p, const auto& q) { return p.second < q.second; });
+  };
+  // The full range coarse to fine: every full_scan_step_rad_s, then every scan_step_rad_s
+  // around the best full_scan_candidates local maxima (the peak is a few scan steps wide, so
+  // the coarse grid lands on its flank; the second candidate guards against a narrow peak
+  // between coarse points losing to a broad one).
+  auto fullScan = [&] {
+    const double coarse = std::max(step, options_.full_scan_step_rad_s);
+    scan(-wmax, wmax, coarse);
+    std::vector<std::pair<double, double>> maxima;  // (f, omega)
+    for (auto it = f_of_w.begin(); it != f_of_w.end(); ++it) {
+      const auto next = std::next(it);
+      const bool left_lower = it == f_of_w.begin() || std::prev(it)->second <= it->second;
+      const bool right_lower = next == f_of_w.end() || next->second <= it->second;
+      if (left_lower && right_lower) maxima.emplace_back(it->second, it->first);
+    }
+    std::sort(maxima.rbegin(), maxima.rend());
+    const size_t k = std::min(maxima.size(), size_t(options_.full_scan_candidates));
+    for (size_t i = 0; i < k; ++i) scan(maxima[i].second - coarse, maxima[i].second + coarse, step);
+  };
+  std::pair<double, double> range;
+  if (center - half_range <= -wmax && center + half_range >= wmax) {
+    fullScan();
+    range = {-wmax, wmax};
+  } else {
+    range = scan(center - half_range, center + half_range, step);
+  }
+  double best_w = best()->first, best_f = best()->second;
+  double min_f = std::min_element(f_of_w.begin(), f_of_w.end(), [](const auto& p, const auto& q) {
+                   return p.second < q.second;
+                 })->second;
   const bool at_edge = (best_w - range.first < 1.5 * step && range.first > -wmax) ||
                        (range.second - best_w < 1.5 * step && range.second < wmax);
   // A flat scan around the previous yaw rate means the peak is elsewhere: a turn that began
@@ -241,13 +293,24 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   // against >= 0.035 for every correct window).
   const bool partial = range.first > -wmax || range.second < wmax;
   const bool flat = best_f > 0 && (best_f - min_f) / best_f < options_.rescan_confidence;
-  if (at_edge || (partial && flat)) range = scan(-wmax, wmax, &best_w, &best_f, &min_f);
-  // Brent's method (parabolic steps, golden-section fallback) inside the bracket around the
-  // best scan point: the objective is smooth there, so it needs a handful of evaluations.
+  if (at_edge || (partial && flat)) {
+    fullScan();
+    best_w = best()->first, best_f = best()->second;
+    for (const auto& p : f_of_w) min_f = std::min(min_f, p.second);
+  }
+  // Brent's method (parabolic steps, golden-section fallback) between the evaluated neighbours
+  // of the best point, starting with the parabola through the three: the objective is smooth
+  // there, so it needs a handful of evaluations.
+  const auto it = best();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  double a = std::max(-wmax, best_w - step), b = std::min(wmax, best_w + step), fa = nan, fb = nan;
+  if (it != f_of_w.begin() && best_w - std::prev(it)->first <= 1.01 * step)
+    a = std::prev(it)->first, fa = std::prev(it)->second;
+  if (std::next(it) != f_of_w.end() && std::next(it)->first - best_w <= 1.01 * step)
+    b = std::next(it)->first, fb = std::next(it)->second;
   double f_ref = best_f;
   const double w_ref = brentMaximize([&](double w) { ++arc.evaluations; return contrast(events, t_ref_ns, w, v); },
-                                     std::max(-wmax, best_w - step), std::min(wmax, best_w + step), best_w, best_f,
-                                     options_.refine_tolerance_rad_s, 30, &f_ref);
+                                     a, b, best_w, best_f, fa, fb, options_.refine_tolerance_rad_s, 30, &f_ref);
   if (f_ref >= best_f) best_w = w_ref, best_f = f_ref;
   arc.omega = best_w;
   arc.contrast = best_f;

@@ -85,6 +85,8 @@ void loadOptions(const YAML::Node& node, const std::string& section, FrontendOpt
   s.get("omega_max_rad_s", &o->omega_max_rad_s);
   s.get("scan_half_range_rad_s", &o->scan_half_range_rad_s);
   s.get("scan_step_rad_s", &o->scan_step_rad_s);
+  s.get("full_scan_step_rad_s", &o->full_scan_step_rad_s);
+  s.get("full_scan_candidates", &o->full_scan_candidates);
   s.get("refine_tolerance_rad_s", &o->refine_tolerance_rad_s);
   s.get("standstill_event_rate_hz", &o->standstill_event_rate_hz);
   s.get("standstill_speed_mps", &o->standstill_speed_mps);

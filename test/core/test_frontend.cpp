@@ -44,6 +44,29 @@ TEST(Frontend, RecoversTheYawRateOfAConstantArc) {
   }
 }
 
+TEST(Frontend, CoarseToFineFullScanFindsATurnWithFewerEvaluations) {
+  // A 0.3 s window of a 35 deg/s turn scanned around a previous yaw rate of 0: the peak lies
+  // beyond the local scan, so the full range is scanned; coarse to fine must land on the same
+  // peak as the fine full scan for well under its cost.
+  const double w = 35.0 / kDegPerRad;
+  const AckermannArcModel truth(w, 0.4, secToNs(5.0), defaultTBaseCam());
+  const EventVector events = synthetic::randomPointEvents(camera(), truth, 8000, 5, 0.15, 600);
+  FrontendOptions fine = options(), coarse = options();
+  fine.full_scan_step_rad_s = fine.scan_step_rad_s;
+  coarse.full_scan_step_rad_s = 0.09;
+  Frontend fe_fine(fine, camera(), defaultTBaseCam()), fe_coarse(coarse, camera(), defaultTBaseCam());
+  const ArcEstimate a_fine = fe_fine.estimateWindow(events, secToNs(5.0), 0.4, 0.0, fine.scan_half_range_rad_s);
+  const ArcEstimate a_coarse =
+      fe_coarse.estimateWindow(events, secToNs(5.0), 0.4, 0.0, coarse.scan_half_range_rad_s);
+  EXPECT_NEAR(a_fine.omega * kDegPerRad, 35.0, 0.5);
+  EXPECT_NEAR(a_coarse.omega * kDegPerRad, 35.0, 0.5);
+  EXPECT_NEAR(a_coarse.omega, a_fine.omega, 1e-3);
+  EXPECT_EQ(a_coarse.status, ArcStatus::kOk);
+  EXPECT_LT(a_coarse.evaluations, 0.6 * a_fine.evaluations)
+      << a_coarse.evaluations << " vs " << a_fine.evaluations << " evaluations";
+  EXPECT_EQ(size_t(a_coarse.evaluations), fe_coarse.stats().evaluations);
+}
+
 TEST(Frontend, LowEventRateIsStandstillNotARandomOmega) {
   FrontendOptions o = options();
   o.standstill_event_rate_hz = 20000;

@@ -44,6 +44,8 @@ struct FrontendOptions {
   double omega_max_rad_s = 1.2;            // |omega| bound of the full scan [rad/s]
   double scan_half_range_rad_s = 0.15;     // scan around the previous omega [rad/s]
   double scan_step_rad_s = 0.03;           // coarse scan step [rad/s]
+  double full_scan_step_rad_s = 0.09;      // step of a full-range scan, refined at scan_step_rad_s [rad/s]
+  int full_scan_candidates = 2;            // maxima of a full-range scan refined at scan_step_rad_s
   double refine_tolerance_rad_s = 3e-4;    // 1-D refinement stops at this bracket width [rad/s]
   double standstill_event_rate_hz = 30000; // below this event rate the vehicle is standing [ev/s]
   double standstill_speed_mps = 0.02;      // odometry speed below this means standstill [m/s]
