@@ -27,6 +27,7 @@ void BackendOptions::validate() const {
   if (min_events_per_volume > max_events_per_volume)
     fail("min_events_per_volume must be <= max_events_per_volume");
   if (max_iterations < 0) fail("max_iterations must be >= 0");
+  if (!(function_tolerance > 0 && function_tolerance < 0.1)) fail("function_tolerance must be in (0, 0.1)");
   if (!(step_scale_m > 0 && step_scale_m <= 1)) fail("step_scale_m must be in (0, 1] m");
   if (!(init_sample_interval_s > 0 && init_sample_interval_s <= knot_spacing_s))
     fail("init_sample_interval_s must be in (0, knot_spacing_s] s");
@@ -452,7 +453,7 @@ void Backend::refine(int64_t t_new_ns) {
   ceres::GradientProblemSolver::Options so;
   so.line_search_direction_type = ceres::LBFGS;
   so.max_num_iterations = options_.max_iterations;
-  so.function_tolerance = 1e-6;
+  so.function_tolerance = options_.function_tolerance;
   so.gradient_tolerance = 1e-8;
   so.parameter_tolerance = 1e-6;
   so.logging_type = ceres::SILENT;

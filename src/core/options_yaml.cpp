@@ -116,6 +116,7 @@ void loadOptions(const YAML::Node& node, const std::string& section, BackendOpti
   s.get("max_events_per_volume", &o->max_events_per_volume);
   s.get("min_events_per_volume", &o->min_events_per_volume);
   s.get("max_iterations", &o->max_iterations);
+  s.get("function_tolerance", &o->function_tolerance);
   s.get("step_scale_m", &o->step_scale_m);
   s.get("init_sample_interval_s", &o->init_sample_interval_s);
   s.get("smoothness_weight", &o->smoothness_weight);

@@ -32,6 +32,7 @@ struct BackendOptions {
   size_t max_events_per_volume = 4000;   // events voted per volume (uniform subsampling)
   size_t min_events_per_volume = 300;    // fewer events: the volume is skipped [events]
   int max_iterations = 20;               // LBFGS iterations per refinement
+  double function_tolerance = 1e-6;      // LBFGS stops when the relative cost change is below this [1]
   double step_scale_m = 0.02;            // solver unit of a control-point coordinate [m]
   double init_sample_interval_s = 0.05;  // spacing of the dead-reckoned poses fitted [s]
   double smoothness_weight = 0.05;       // second-difference prior of the initial fit [1]
