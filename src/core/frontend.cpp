@@ -112,7 +112,8 @@ Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera, co
       T_base_cam_(T_base_cam),
       volume_((options.validate(), options.volume), camera.width(), camera.height(), camera.calibration().fx,
               camera.calibration().fy, camera.calibration().cx, camera.calibration().cy),
-      objective_(camera_, &volume_) {}
+      objective_(camera_, &volume_),
+      scan_objectives_(camera_, options_.volume) {}
 
 void Frontend::reset() {
   buffer_.clear();
@@ -227,6 +228,17 @@ double Frontend::contrast(const EventVector& events, int64_t t_ref_ns, double om
   return objective_.evaluate(events, model).variance;
 }
 
+std::vector<double> Frontend::contrasts(const EventVector& events, int64_t t_ref_ns, const std::vector<double>& omegas,
+                                        double v) {
+  std::vector<double> f(omegas.size());
+  scan_objectives_.run(int(omegas.size()), [&](int i, VweObjective& objective) {
+    const AckermannArcModel model(omegas[size_t(i)], v, t_ref_ns, T_base_cam_);
+    f[size_t(i)] = objective.evaluate(events, model).variance;
+  });
+  stats_.evaluations += omegas.size();
+  return f;
+}
+
 ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns, double v, double center,
                                      double half_range) {
   ArcEstimate arc;
@@ -245,12 +257,15 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
     lo = std::max(lo, -wmax);
     hi = std::min(hi, wmax);
     const int n = std::max(2, int(std::ceil((hi - lo) / scan_step - 1e-9)) + 1);
+    std::vector<double> ws;
     for (int i = 0; i < n; ++i) {
       const double w = lo + (hi - lo) * i / (n - 1);
-      if (covered(w)) continue;
-      f_of_w[w] = contrast(events, t_ref_ns, w, v);
-      ++arc.evaluations;
+      if (!covered(w)) ws.push_back(w);
     }
+    // The points are independent: evaluated in parallel, one per thread.
+    const std::vector<double> fs = contrasts(events, t_ref_ns, ws, v);
+    for (size_t i = 0; i < ws.size(); ++i) f_of_w[ws[i]] = fs[i];
+    arc.evaluations += int(ws.size());
     return std::make_pair(lo, hi);
   };
   auto best = [&] {

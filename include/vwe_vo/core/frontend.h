@@ -112,6 +112,9 @@ class Frontend {
                              double half_range);
   /// Variance of the VWE of `events` for an arc (omega, v) about t_ref.
   double contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v);
+  /// contrast() at every omega, one evaluation per thread (the same values as contrast()).
+  std::vector<double> contrasts(const EventVector& events, int64_t t_ref_ns, const std::vector<double>& omegas,
+                                double v);
 
   /// Replaces the speed used when no odometry is given (e.g. the back-end's refined speed);
   /// throws std::invalid_argument unless positive and finite.
@@ -139,7 +142,8 @@ class Frontend {
   const CameraModel& camera_;
   Pose3 T_base_cam_;
   ProjectiveVolume volume_;
-  VweObjective objective_;
+  VweObjective objective_;             // one evaluation on all threads (the refinement)
+  VweObjectivePool scan_objectives_;   // one evaluation per thread (the scans)
   EventBuffer buffer_;
   int64_t next_window_start_ns_ = -1;
   struct RateSample {
