@@ -61,7 +61,7 @@ void MappingNode::readParameters() {
   pnh_.param("trajectory_margin_s", o.trajectory_margin_s, 0.2);
   pnh_.param("keyframe_timeout_s", o.keyframe_timeout_s, 3.0);
   pnh_.param("max_backwards_jump_s", o.max_backwards_jump_s, 0.5);
-  pnh_.param("max_queue_packets", o.max_queue_packets, 2000);
+  pnh_.param("max_queue_packets", o.max_queue_packets, 5000);  // ~5 s of the driver at 1 kHz: bursts of keyframes
   pnh_.param("status_period_s", o.status_period_s, 10.0);
   pnh_.param("nice", o.nice, 0);
   o.validate();
