@@ -37,9 +37,11 @@ STATUS_PERIOD_S = 2.0
 PATTERNS = {
     "frontend_node": {
         "windows": r"frontend_node: (\d+) windows \(",
-        "windows_ok": r"\((\d+) ok,",
+        "windows_split": r"\((\d+) split in two\)",
+        "arcs": r"-> (\d+) arcs",
+        "arcs_ok": r"\((\d+) ok,",
         "windows_lost": r"(\d+) lost,",
-        "windows_skipped_behind": r"(\d+) skipped behind",
+        "windows_skipped_behind": r"(\d+) windows skipped behind",
         "packets_in": r"packets (\d+) \(",
         "packets_lost_seq": r"(\d+) lost before the node",
         "packets_queue_full": r"(\d+) queue full\)",

@@ -357,11 +357,12 @@ void FrontendNode::logStatus() {
   const double wall_s = std::max(1e-6, (now - last_status_).toSec());
   const FrontendStats& s = frontend_->stats();
   ROS_INFO(
-      "frontend_node: %zu windows (%zu ok, %zu standstill, %zu lost, %zu low events), %zu skipped "
-      "behind; "
+      "frontend_node: %zu windows (%zu split in two) -> %zu arcs (%zu ok, %zu standstill, %zu lost, %zu "
+      "low events), %zu windows skipped behind; "
       "%.0f events/s in, %zu outside the sensor, %zu late; packets %zu (%zu lost before the node, %zu "
       "empty, %zu wrong size, %zu queue full); %zu resets; real-time factor %.3f",
-      s.windows, windows_ok_, windows_standstill_, windows_lost_, windows_low_, s.windows_dropped,
+      s.windows, s.windows_split, windows_ok_ + windows_standstill_ + windows_lost_ + windows_low_, windows_ok_,
+      windows_standstill_, windows_lost_, windows_low_, s.windows_dropped,
       double(s.events_in - last_status_events_) / wall_s,
       s.events_outside + events_outside_msg_.load(), s.events_out_of_order, packets_in_.load(),
       packets_lost_.load(), packets_empty_.load(), packets_wrong_size_.load(), packets_queue_full_.load(), s.resets,
