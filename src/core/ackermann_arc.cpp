@@ -1,5 +1,7 @@
 #include "vwe_vo/core/ackermann_arc.h"
 
+#include <algorithm>
+
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -112,9 +114,9 @@ void ArcChain::append(double omega, double v, int64_t t_end_ns) {
 Pose3 ArcChain::T_odom_base(int64_t t_ns) const {
   if (segments_.empty()) return T_odom_start_;
   // The first segment whose end is at or after t (the last one for t beyond the end).
-  size_t i = 0;
-  while (i + 1 < segments_.size() && segments_[i].t1_ns < t_ns) ++i;
-  const Segment& s = segments_[i];
+  const auto it = std::lower_bound(segments_.begin(), segments_.end() - 1, t_ns,
+                                   [](const Segment& s, int64_t t) { return s.t1_ns < t; });
+  const Segment& s = *it;
   return arcPropagate(s.T_odom_V0, s.t0_ns, s.omega, s.v, t_ns);
 }
 

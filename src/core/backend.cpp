@@ -232,6 +232,7 @@ void Backend::reset() {
   buffer_.clear();
   standstills_ns_.clear();
   chain_.reset();
+  has_last_rates_ = false;
   newest_arc_ns_ = processed_ns_ = -1;
   first_free_ = 0;
   T_anchor_ = Pose3::Identity();
@@ -265,11 +266,40 @@ bool Backend::addArc(const ArcEstimate& arc) {
     was_reset = true;
   }
   if (!chain_) chain_ = std::make_unique<ArcChain>(Pose3::Identity(), arc.t_start_ns);
-  if (arc.t_end_ns <= chain_->endTime()) return was_reset;
+  if (newest_arc_ns_ >= 0 && arc.t_end_ns <= newest_arc_ns_) return was_reset;
   const bool still = arc.status == ArcStatus::kStandstill;
-  const double omega = still ? 0.0 : arc.omega, v = still ? 0.0 : arc.v;
-  const int64_t from = chain_->endTime();
-  chain_->append(std::isfinite(omega) ? omega : 0.0, std::isfinite(v) ? v : 0.0, arc.t_end_ns);
+  const double omega = still || !std::isfinite(arc.omega) ? 0.0 : arc.omega;
+  const double v = still || !std::isfinite(arc.v) ? 0.0 : arc.v;
+  const int64_t from = newest_arc_ns_ >= 0 ? newest_arc_ns_ : arc.t_start_ns;
+  if (!options_.interpolate_arc_rates) {
+    chain_->append(omega, v, arc.t_end_ns);
+  } else if (still) {
+    // The moving arc before keeps its rates to its end; the standstill holds the pose.
+    if (has_last_rates_ && from > chain_->endTime()) chain_->append(last_rates_.omega, last_rates_.v, from);
+    chain_->append(0.0, 0.0, arc.t_end_ns);
+    has_last_rates_ = false;
+  } else {
+    // Each arc is the mean rate over its window, i.e. the rate at its middle: between two
+    // middles the rates ramp linearly (in short constant pieces), as integrateArcs() does.
+    const int64_t t_ref = std::clamp(arc.t_ref_ns, std::max(from, chain_->endTime()), arc.t_end_ns);
+    if (!has_last_rates_) {
+      if (from > chain_->endTime()) chain_->append(0.0, 0.0, from);  // after a standstill
+      chain_->append(omega, v, t_ref);
+    } else {
+      constexpr int kPieces = 8;
+      const int64_t t0 = chain_->endTime();
+      for (int k = 0; k < kPieces; ++k) {
+        const double s = (k + 0.5) / kPieces;
+        chain_->append((1 - s) * last_rates_.omega + s * omega, (1 - s) * last_rates_.v + s * v,
+                       t0 + (t_ref - t0) * (k + 1) / kPieces);
+      }
+      chain_->append(omega, v, t_ref);  // empty: beyond its end the chain goes on at the arc's rates
+    }
+    last_rates_ = arc;
+    last_rates_.omega = omega;
+    last_rates_.v = v;
+    has_last_rates_ = true;
+  }
   if (still) {
     if (!standstills_ns_.empty() && standstills_ns_.back().second >= from)
       standstills_ns_.back().second = arc.t_end_ns;

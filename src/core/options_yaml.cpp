@@ -120,6 +120,7 @@ void loadOptions(const YAML::Node& node, const std::string& section, BackendOpti
   s.get("step_scale_m", &o->step_scale_m);
   s.get("init_sample_interval_s", &o->init_sample_interval_s);
   s.get("smoothness_weight", &o->smoothness_weight);
+  s.get("interpolate_arc_rates", &o->interpolate_arc_rates);
   s.get("speed_prior_weight", &o->speed_prior_weight);
   s.get("deformation_weight", &o->deformation_weight);
   s.get("max_backwards_jump_s", &o->max_backwards_jump_s);

@@ -393,6 +393,43 @@ TEST(Backend, ContinuousOdometryHasNoJumpsAtRefinements) {
   EXPECT_LT(max_increment_error, 1e-9);
 }
 
+TEST(Backend, DeadReckoningRampsTheRatesBetweenTheArcsMiddles) {
+  // Arcs of 0.3 s whose yaw rates step 0 -> 0.6 -> 0.6 -> 0 -> -0.3 rad/s: between the middles
+  // of two arcs the rates ramp, as integrateArcs() (the front-end's trajectory) does; steps at
+  // the window borders give the same heading at the middles but not in between.
+  const CameraModel cam(testCalibration());
+  BackendOptions o = testOptions();
+  std::vector<ArcEstimate> arcs;
+  const double omegas[] = {0.0, 0.6, 0.6, 0.0, -0.3};
+  for (int k = 0; k < 5; ++k) {
+    ArcEstimate a;
+    a.t_start_ns = kEpoch + secToNs(0.3 * k);
+    a.t_end_ns = kEpoch + secToNs(0.3 * (k + 1));
+    a.t_ref_ns = (a.t_start_ns + a.t_end_ns) / 2;
+    a.omega = omegas[k];
+    a.v = 0.4;
+    arcs.push_back(a);
+  }
+  const Trajectory3 ramp = integrateArcs(arcs, secToNs(0.001));
+  for (bool interpolate : {true, false}) {
+    o.interpolate_arc_rates = interpolate;
+    Backend b(o, cam, testExtrinsics());
+    for (const ArcEstimate& a : arcs) b.addArc(a);  // no process(): poseAt() is the dead reckoning
+    double max_heading_error = 0.0;
+    for (const auto& sample : ramp) {
+      if (sample.t_ns > arcs.back().t_ref_ns) break;
+      Pose3 T;
+      ASSERT_TRUE(b.poseAt(sample.t_ns, &T, nullptr, nullptr));
+      max_heading_error =
+          std::max(max_heading_error, std::abs(wrapAngle(yawOf(T.linear()) - yawOf(sample.T.linear()))));
+    }
+    if (interpolate)
+      EXPECT_LT(max_heading_error, 1e-3) << "ramps between the middles (in 8 constant pieces)";
+    else
+      EXPECT_GT(max_heading_error, 0.01) << "steps at the window borders";  // 0.6 rad/s x 0.15 s / 4
+  }
+}
+
 TEST(Backend, StandstillGivesFinitePosesAndSkipsVolumes) {
   Scene sc;
   std::vector<ArcEstimate> arcs = truthArcs(*sc.truth, 0.0);

@@ -36,6 +36,7 @@ struct BackendOptions {
   double step_scale_m = 0.02;            // solver unit of a control-point coordinate [m]
   double init_sample_interval_s = 0.05;  // spacing of the dead-reckoned poses fitted [s]
   double smoothness_weight = 0.05;       // second-difference prior of the initial fit [1]
+  bool interpolate_arc_rates = true;     // dead reckoning with rates linear between the arcs' middles (false: steps)
   double speed_prior_weight = 10.0;      // relative-speed prior vs the normalised VWE (0: off) [1]
   double deformation_weight = 1.0;       // third-difference prior on the control-point moves (0: off) [1]
   double max_backwards_jump_s = 0.05;    // arcs older than newest - this reset the back-end [s]
@@ -207,6 +208,10 @@ class Backend {
   EventBuffer buffer_;
   std::vector<std::pair<int64_t, int64_t>> standstills_ns_;  // merged STANDSTILL arcs
   std::unique_ptr<ArcChain> chain_;                          // front-end dead reckoning
+  // The newest arc the chain reaches the middle of (interpolate_arc_rates): the chain ends at its
+  // t_ref and continues with its rates; the next arc appends the ramp between the two middles.
+  bool has_last_rates_ = false;
+  ArcEstimate last_rates_;
   int64_t newest_arc_ns_ = -1;
   int64_t processed_ns_ = -1;
   int first_free_ = 0;
