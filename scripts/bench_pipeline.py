@@ -4,9 +4,12 @@ simulated sequences and writes OUT/bench_pipeline.json with the real-time factor
 (processing time / data duration, on this machine), the objective evaluations, and the accuracy
 against ground truth (vwe_vo_eval). The sequences are generated once (scripts/make_sequences.sh,
 cached). Timings are only meaningful on an otherwise idle machine: the load average at the start
-is recorded next to them.
+is recorded next to them. With --seeds 1,2,3 each sequence is also run with those event-subsampling
+seeds (front-end and back-end) and the spread of the accuracy is reported: one seed can move a
+rotation RMSE by a factor of several when a single window goes wrong.
 
-    scripts/bench_pipeline.py --ws .build/ws --out out/bench [SEQUENCE ...]   (default indoor_long street_long)
+    scripts/bench_pipeline.py --ws .build/ws --out out/bench [--seeds 1,2,3] [SEQUENCE ...]
+    (default sequences: indoor_long street_long)
 """
 import argparse
 import json
@@ -14,6 +17,9 @@ import os
 import platform
 import subprocess
 import sys
+import tempfile
+
+import yaml
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -31,10 +37,44 @@ def evaluate(binary, gt, est):
             "trans_dir_rmse_deg_s": e["rpe"]["trans_dir_rmse_deg_s"], "ate_percent": e["ate"]["percent_of_path"]}
 
 
+def seeded_config(config, seed):
+    """A copy of config with both subsampling seeds set (relative paths kept working)."""
+    d = yaml.safe_load(open(config))
+    calib = d.get("camera_calibration")
+    if calib and not os.path.isabs(calib):
+        d["camera_calibration"] = os.path.join(os.path.dirname(os.path.abspath(config)), calib)
+    for section in ("frontend", "backend"):
+        d.setdefault(section, {})["seed"] = seed
+    f = tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False)
+    yaml.safe_dump(d, f)
+    f.close()
+    return f.name
+
+
+def run(bin_dir, seq, config, run_dir):
+    seq_dir = os.path.join(ROOT, "out", "sequences", seq)
+    os.makedirs(run_dir, exist_ok=True)
+    subprocess.run([os.path.join(bin_dir, "vwe_vo_offline"), "--bag", os.path.join(seq_dir, seq + ".bag"),
+                    "--config", config, "--use-odom", "--no-map", "--quiet", "--out", run_dir],
+                   check=True, stdout=subprocess.DEVNULL)
+    rep = json.load(open(os.path.join(run_dir, "report.json")))
+    fe, be = rep["stages"]["frontend"], rep["stages"]["backend"]
+    gt = os.path.join(seq_dir, "groundtruth.txt")
+    ev = os.path.join(bin_dir, "vwe_vo_eval")
+    return {"duration_s": round(rep["duration_s"], 2), "events": rep["events"],
+            "real_time_factor": {"frontend": round(fe["real_time_factor"], 3),
+                                 "backend": round(be["real_time_factor"], 3),
+                                 "frontend_plus_backend": round(fe["real_time_factor"] + be["real_time_factor"], 3)},
+            "objective_evaluations": {"frontend": fe["objective_evaluations"], "backend": be["objective_evaluations"]},
+            "frontend": evaluate(ev, gt, os.path.join(run_dir, "frontend.tum")),
+            "backend": evaluate(ev, gt, os.path.join(run_dir, "backend.tum"))}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ws", default=os.path.join(ROOT, ".build", "ws"))
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "bench"))
+    ap.add_argument("--seeds", default="", help="comma-separated subsampling seeds to run as well, e.g. 1,2,3")
     ap.add_argument("sequences", nargs="*", default=["indoor_long", "street_long"])
     a = ap.parse_args()
     bin_dir = os.path.join(a.ws, "devel", "lib", "vwe_vo")
@@ -44,27 +84,22 @@ def main():
                           "load_average_at_start": [round(x, 2) for x in os.getloadavg()]},
               "sequences": {}}
     for seq in a.sequences:
-        seq_dir = os.path.join(ROOT, "out", "sequences", seq)
-        run_dir = os.path.join(a.out, "pipeline", seq)
-        os.makedirs(run_dir, exist_ok=True)
-        subprocess.run([os.path.join(bin_dir, "vwe_vo_offline"), "--bag", os.path.join(seq_dir, seq + ".bag"),
-                        "--config", config_for(seq), "--use-odom", "--no-map", "--quiet", "--out", run_dir],
-                       check=True, stdout=subprocess.DEVNULL)
-        rep = json.load(open(os.path.join(run_dir, "report.json")))
-        fe, be = rep["stages"]["frontend"], rep["stages"]["backend"]
-        gt = os.path.join(seq_dir, "groundtruth.txt")
-        ev = os.path.join(bin_dir, "vwe_vo_eval")
-        r = {"duration_s": round(rep["duration_s"], 2), "events": rep["events"],
-             "real_time_factor": {"frontend": round(fe["real_time_factor"], 3),
-                                  "backend": round(be["real_time_factor"], 3),
-                                  "frontend_plus_backend": round(fe["real_time_factor"] + be["real_time_factor"], 3)},
-             "objective_evaluations": {"frontend": fe["objective_evaluations"], "backend": be["objective_evaluations"]},
-             "frontend": evaluate(ev, gt, os.path.join(run_dir, "frontend.tum")),
-             "backend": evaluate(ev, gt, os.path.join(run_dir, "backend.tum"))}
+        r = run(bin_dir, seq, config_for(seq), os.path.join(a.out, "pipeline", seq))
         result["sequences"][seq] = r
         print("[bench] pipeline %-12s RTF front %.3f + back %.3f = %.3f; rotation RMSE front %.3f back %.3f deg/s"
-              % (seq, fe["real_time_factor"], be["real_time_factor"], r["real_time_factor"]["frontend_plus_backend"],
-                 r["frontend"]["rot_rmse_deg_s"], r["backend"]["rot_rmse_deg_s"]), flush=True)
+              % (seq, r["real_time_factor"]["frontend"], r["real_time_factor"]["backend"],
+                 r["real_time_factor"]["frontend_plus_backend"], r["frontend"]["rot_rmse_deg_s"],
+                 r["backend"]["rot_rmse_deg_s"]), flush=True)
+        if a.seeds:
+            by_seed = {}
+            for seed in [int(x) for x in a.seeds.split(",")]:
+                cfg = seeded_config(config_for(seq), seed)
+                rs = run(bin_dir, seq, cfg, os.path.join(a.out, "pipeline", "%s_seed%d" % (seq, seed)))
+                os.unlink(cfg)
+                by_seed[seed] = {m: rs[m]["rot_rmse_deg_s"] for m in ("frontend", "backend")}
+                print("[bench] pipeline %-12s seed %d: rotation RMSE front %.3f back %.3f deg/s"
+                      % (seq, seed, by_seed[seed]["frontend"], by_seed[seed]["backend"]), flush=True)
+            r["rot_rmse_deg_s_by_seed"] = by_seed
     path = os.path.join(a.out, "bench_pipeline.json")
     with open(path, "w") as f:
         json.dump(result, f, indent=1)
