@@ -126,6 +126,8 @@ void EmvsOptions::validate() const {
   if (nms_radius_px < 0 || nms_radius_px > 10) fail("nms_radius_px must be in [0, 10]");
   if (nms_planes < 0) fail("nms_planes must be >= 0");
   if (max_pending_events == 0) fail("max_pending_events must be positive");
+  if (!(max_event_rate_hz >= 0 && std::isfinite(max_event_rate_hz)))
+    fail("max_event_rate_hz must be >= 0 (0: vote every event)");
 }
 
 DepthExtraction extractDepth(const ProjectiveVolume& volume, const EmvsOptions& options) {
@@ -331,6 +333,18 @@ void EmvsMapper::addEvents(const EventVector& events) {
       ++dropped_out_of_order_;
       continue;
     }
+    if (options_.max_event_rate_hz > 0) {
+      const double burst = std::max(1.0, 0.01 * options_.max_event_rate_hz);
+      tokens_ = t_tokens_ns_ == INT64_MIN
+                    ? 1.0
+                    : std::min(burst, tokens_ + nsToSec(e.t_ns - t_tokens_ns_) * options_.max_event_rate_hz);
+      t_tokens_ns_ = e.t_ns;
+      if (tokens_ < 1.0) {
+        ++thinned_;
+        continue;
+      }
+      tokens_ -= 1.0;
+    }
     pending_.push_back(e);
   }
   while (pending_.size() > options_.max_pending_events) {
@@ -497,6 +511,8 @@ bool EmvsMapper::finish(EmvsKeyframe* keyframe) {
 
 void EmvsMapper::reset() {
   pending_.clear();
+  tokens_ = 0.0;
+  t_tokens_ns_ = INT64_MIN;
   kf_events_.clear();
   kf_slices_.clear();
   counts_ = EmvsCounts();

@@ -234,6 +234,7 @@ nlohmann::json OfflinePipeline::report() const {
         {"events_outside_sensor", map_counts_.skipped_outside},
         {"events_out_of_order", mapper_->droppedOutOfOrder()},
         {"events_dropped_pending", mapper_->droppedPending()},
+        {"events_thinned", mapper_->thinned()},
         {"keyframe_points", map_counts_.points},
         {"outliers_removed", map_counts_.outliers},
         {"map_points", map_->size()},

@@ -166,6 +166,7 @@ void loadOptions(const YAML::Node& node, const std::string& section, EmvsOptions
   s.get("max_events_per_keyframe", &o->max_events_per_keyframe);
   s.get("pose_slice_ns", &o->pose_slice_ns);
   s.get("max_pending_events", &o->max_pending_events);
+  s.get("max_event_rate_hz", &o->max_event_rate_hz);
   s.reportUnknown(warnings);
   o->validate();
 }

@@ -88,10 +88,10 @@ void MappingNode::readParameters() {
       o.cloud_period_s, o.trajectory_margin_s, o.keyframe_timeout_s, o.max_queue_packets);
   ROS_INFO(
       "mapping_node: keyframe every %.2f m or %.1f deg or %zu events; DSI %d planes in [%.2f, "
-      "%.2f] m at grid scale %.2f; %zu events may wait for the trajectory; global map voxel %.3f "
-      "m, %zu points max",
+      "%.2f] m at grid scale %.2f; %zu events may wait for the trajectory; at most %.0f events/s "
+      "voted (0: all); global map voxel %.3f m, %zu points max",
       e.kf_distance_m, e.kf_rotation_deg, e.max_events_per_keyframe, e.volume.num_planes,
-      e.volume.z_min_m, e.volume.z_max_m, e.volume.grid_scale, e.max_pending_events,
+      e.volume.z_min_m, e.volume.z_max_m, e.volume.grid_scale, e.max_pending_events, e.max_event_rate_hz,
       global_map_options_.voxel_size_m, global_map_options_.max_points);
 }
 
@@ -315,11 +315,11 @@ void MappingNode::logStatus() {
   const ros::WallTime now = ros::WallTime::now();
   ROS_INFO(
       "mapping_node: %zu keyframes (%zu empty), global map %zu points (%zu dropped); events: %zu "
-      "voted, %zu waiting, %zu not covered by the trajectory, %zu non-finite pose, %zu late, %zu "
+      "voted (%zu thinned to the rate limit), %zu waiting, %zu not covered by the trajectory, %zu non-finite pose, %zu late, %zu "
       "dropped waiting; packets %zu (%zu lost before the node, %zu empty, %zu wrong size, %zu queue full, %zu before the "
       "calibration); trajectories "
       "%zu (%zu refused); %zu resets; busy %.1f s",
-      keyframes_, keyframes_empty_, map_->size(), map_->dropped(), counts_.voted,
+      keyframes_, keyframes_empty_, map_->size(), map_->dropped(), counts_.voted, mapper_->thinned(),
       mapper_->pendingEvents(), counts_.skipped_time, counts_.skipped_nan,
       mapper_->droppedOutOfOrder(), mapper_->droppedPending(), packets_in_.load(),
       packets_lost_.load(), packets_empty_.load(), packets_wrong_size_.load(), packets_queue_full_.load(),

@@ -353,6 +353,25 @@ TEST(Emvs, EventsAfterTheFinalTimeWaitForTheTrajectory) {
   EXPECT_EQ(kf.counts.voted, wall().events.size());
 }
 
+TEST(Emvs, RateLimitKeepsEventsEvenlyAndCountsTheRest) {
+  // 100k events/s for 1 s, limited to 30k events/s: 30k kept (within the 10 ms burst), as many in
+  // each half second, the rest counted as thinned.
+  EventVector events;
+  for (int i = 0; i < 100000; ++i) events.push_back({secToNs(1.0) + int64_t(i) * 10000, 10, 10, 1});
+  EmvsOptions o;
+  o.max_event_rate_hz = 30000;
+  EmvsMapper mapper(o, camera());
+  mapper.addEvents(EventVector(events.begin(), events.begin() + 50000));
+  const size_t first_half = mapper.pendingEvents();
+  mapper.addEvents(EventVector(events.begin() + 50000, events.end()));
+  const size_t kept = mapper.pendingEvents();
+  EXPECT_NEAR(double(kept), 30000.0, 301.0);
+  EXPECT_NEAR(double(first_half), double(kept - first_half), 2.0);
+  EXPECT_EQ(kept + mapper.thinned(), events.size());
+  o.max_event_rate_hz = -1;
+  EXPECT_THROW(o.validate(), std::invalid_argument);
+}
+
 TEST(Emvs, NanPosesAreSkippedAndCounted) {
   const auto& truth = wall().truth;
   auto with_nan = [&truth](int64_t t, Pose3* T) {

@@ -52,6 +52,8 @@ struct EmvsOptions {
       500000;  // events within this span share one pose [ns]; 0 = a pose per event
   size_t max_pending_events =
       8000000;            // events waiting for the trajectory; the oldest are dropped beyond
+  double max_event_rate_hz = 0.0;  // vote at most this many events per second (evenly over time,
+                                   // the others counted as thinned); 0 = all
   void validate() const;  // throws std::invalid_argument naming the field
 };
 
@@ -142,6 +144,8 @@ class EmvsMapper {
   size_t pendingEvents() const { return pending_.size(); }
   size_t droppedOutOfOrder() const { return dropped_out_of_order_; }
   size_t droppedPending() const { return dropped_pending_; }
+  /// Events left out to stay within max_event_rate_hz.
+  size_t thinned() const { return thinned_; }
   size_t numKeyframes() const { return num_keyframes_; }
   const ProjectiveVolume& volume() const { return *volume_; }
 
@@ -164,7 +168,10 @@ class EmvsMapper {
   std::unique_ptr<ProjectiveVolume> volume_;
   ThreadPool pool_;  // ray building
   std::deque<PixelEvent> pending_;
-  size_t dropped_out_of_order_ = 0, dropped_pending_ = 0, num_keyframes_ = 0;
+  size_t dropped_out_of_order_ = 0, dropped_pending_ = 0, num_keyframes_ = 0, thinned_ = 0;
+  // Token bucket of max_event_rate_hz: events earn a vote as time passes (at most 10 ms worth).
+  double tokens_ = 0.0;
+  int64_t t_tokens_ns_ = INT64_MIN;
   // The keyframe being gathered.
   bool active_ = false;
   int64_t t_kf_ns_ = 0, t_last_ns_ = 0;
