@@ -51,7 +51,7 @@ struct FrontendOptions {
   double standstill_speed_mps = 0.02;      // odometry speed below this means standstill [m/s]
   size_t min_events = 1500;                // fewer events in a window: LOW_EVENTS, omega held
   double min_confidence = 0.02;            // below: LOST, next window scans the full range
-  double rescan_confidence = 0.04;         // a flatter scan around the previous omega is repeated
+  double rescan_confidence = 0.07;         // a flatter scan around the previous omega is repeated
                                            // over the full range (a fast turn began)
   double split_omega_change_rad_s = 0.05;  // a window whose omega differs more from the last is
                                            // estimated again as two halves (0: never)
