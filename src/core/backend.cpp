@@ -275,7 +275,7 @@ bool Backend::addArc(const ArcEstimate& arc) {
     chain_->append(omega, v, arc.t_end_ns);
   } else if (still) {
     // The moving arc before keeps its rates to its end; the standstill holds the pose.
-    if (has_last_rates_ && from > chain_->endTime()) chain_->append(last_rates_.omega, last_rates_.v, from);
+    if (has_last_rates_ && from > chain_->endTime()) chain_->append(last_omega_, last_v_, from);
     chain_->append(0.0, 0.0, arc.t_end_ns);
     has_last_rates_ = false;
   } else {
@@ -290,14 +290,13 @@ bool Backend::addArc(const ArcEstimate& arc) {
       const int64_t t0 = chain_->endTime();
       for (int k = 0; k < kPieces; ++k) {
         const double s = (k + 0.5) / kPieces;
-        chain_->append((1 - s) * last_rates_.omega + s * omega, (1 - s) * last_rates_.v + s * v,
+        chain_->append((1 - s) * last_omega_ + s * omega, (1 - s) * last_v_ + s * v,
                        t0 + (t_ref - t0) * (k + 1) / kPieces);
       }
       chain_->append(omega, v, t_ref);  // empty: beyond its end the chain goes on at the arc's rates
     }
-    last_rates_ = arc;
-    last_rates_.omega = omega;
-    last_rates_.v = v;
+    last_omega_ = omega;
+    last_v_ = v;
     has_last_rates_ = true;
   }
   if (still) {

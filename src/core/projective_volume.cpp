@@ -164,7 +164,7 @@ double ProjectiveVolume::varianceOfRays(const std::vector<VolumeRay>& rays, size
           });
       }
       plane_counts_[size_t(l)] = n;
-      plane_squares_[size_t(l)] = takeSquares(g, rays, rho, n);
+      plane_squares_[size_t(l)] = takeSquares(g, rays, rho, 4 * n >= plane_voxels);
     }
   });
   if (sensitivities) {
@@ -181,9 +181,9 @@ double ProjectiveVolume::varianceOfRays(const std::vector<VolumeRay>& rays, size
 }
 
 double ProjectiveVolume::takeSquares(float* plane, const std::vector<VolumeRay>& rays, float rho,
-                                     size_t votes) const {
+                                     bool sweep) const {
   const size_t W = size_t(width_), plane_voxels = W * height_;
-  if (4 * votes >= plane_voxels) {
+  if (sweep) {
     // Dense votes: one sweep over the plane.
     float q8[8] = {0, 0, 0, 0, 0, 0, 0, 0};
     double q = 0.0;
@@ -217,7 +217,7 @@ double ProjectiveVolume::clear(const std::vector<VolumeRay>& rays) {
   pool_.run(L, [&](int l, int) {
     // Dense votes: every plane is swept; sparse: takeSquares() visits the votes.
     plane_squares_[size_t(l)] =
-        takeSquares(grid_.data() + size_t(l) * plane_voxels, rays, float(rho_[l]), dense ? plane_voxels : 0);
+        takeSquares(grid_.data() + size_t(l) * plane_voxels, rays, float(rho_[l]), dense);
   });
   double q = 0.0;
   for (double p : plane_squares_) q += p;

@@ -211,7 +211,7 @@ class Backend {
   // The newest arc the chain reaches the middle of (interpolate_arc_rates): the chain ends at its
   // t_ref and continues with its rates; the next arc appends the ramp between the two middles.
   bool has_last_rates_ = false;
-  ArcEstimate last_rates_;
+  double last_omega_ = 0.0, last_v_ = 0.0;
   int64_t newest_arc_ns_ = -1;
   int64_t processed_ns_ = -1;
   int first_free_ = 0;

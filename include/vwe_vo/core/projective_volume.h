@@ -82,9 +82,9 @@ class ProjectiveVolume {
   void forEachPlaneVote(const VolumeRay& r, float rho, Fn&& fn) const;
   template <typename Fn>
   void forEachVote(const VolumeRay& r, int l, Fn&& fn) const;
-  /// Sum of squares of a plane's voxels, zeroing them: by a sweep when votes cover a quarter of
-  /// the plane, otherwise by visiting the rays' votes.
-  double takeSquares(float* plane, const std::vector<VolumeRay>& rays, float rho, size_t votes) const;
+  /// Sum of squares of a plane's voxels, zeroing them: by a sweep over the plane (when the votes
+  /// cover a quarter of it anyway), otherwise by visiting the rays' votes.
+  double takeSquares(float* plane, const std::vector<VolumeRay>& rays, float rho, bool sweep) const;
 
   VolumeOptions options_;
   int width_, height_;
