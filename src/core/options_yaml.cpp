@@ -117,12 +117,13 @@ void loadOptions(const YAML::Node& node, const std::string& section, BackendOpti
   s.get("min_events_per_volume", &o->min_events_per_volume);
   s.get("max_iterations", &o->max_iterations);
   s.get("function_tolerance", &o->function_tolerance);
-  s.get("step_scale_m", &o->step_scale_m);
+  s.get("step_scale_per_span", &o->step_scale_per_span);
   s.get("init_sample_interval_s", &o->init_sample_interval_s);
   s.get("smoothness_weight", &o->smoothness_weight);
   s.get("interpolate_arc_rates", &o->interpolate_arc_rates);
   s.get("speed_prior_weight", &o->speed_prior_weight);
   s.get("deformation_weight", &o->deformation_weight);
+  s.get("arc_rate_prior_weight", &o->arc_rate_prior_weight);
   s.get("max_backwards_jump_s", &o->max_backwards_jump_s);
   s.get("output_rate_hz", &o->output_rate_hz);
   s.get("seed", &o->seed);

@@ -258,6 +258,49 @@ TEST(Backend, SpeedPriorGradientMatchesCentralFiniteDifferences) {
   }
 }
 
+TEST(Backend, ArcRatePriorIsZeroOnItsOwnArcsAndItsGradientMatchesFiniteDifferences) {
+  auto spline = std::make_shared<BSpline>(*truthSpline());
+  const int first_free = 4;
+  // Arcs of 0.3 s and 0.15 s measuring the spline's own mean yaw rates, then the same with a
+  // known error of +2 deg/s on one of them.
+  // The first two arcs end in the first knot span (0.3 s), on fixed control points only.
+  std::vector<ArcRatePrior::Arc> arcs = {{0.0, 0.1, 0.0}};
+  for (double u = 0.1; u + 0.3 <= kDuration; u += 0.3) {
+    const double d = arcs.size() % 3 == 1 ? 0.15 : 0.3;
+    arcs.push_back({u, u + d, wrapAngle(spline->heading(u + d) - spline->heading(u)) / d});
+  }
+  const ArcRatePrior exact(spline, first_free, arcs, 1e-2);
+  EXPECT_GT(exact.numArcs(), 5u);
+  EXPECT_EQ(exact.numArcs(), arcs.size() - 2);
+  arcs.erase(arcs.begin(), arcs.begin() + 2);
+  Eigen::VectorXd g;
+  EXPECT_NEAR(exact.evaluate(&g), 0.0, 1e-20);
+  std::vector<ArcRatePrior::Arc> biased = arcs;
+  biased.back().omega += 2.0 * kPi / 180.0;
+  const ArcRatePrior prior(spline, first_free, biased, 1e-2);
+  EXPECT_NEAR(prior.evaluate(nullptr), 1e-2 / double(prior.numArcs()) * 2.0 * 2.0, 1e-9);
+  // Moved control points: analytic gradient against central differences.
+  for (int i = first_free; i < spline->numControlPoints(); ++i)
+    spline->setControlPoint(
+        i, spline->controlPoints()[i] + 0.01 * Vec2(std::cos(2.0 * i), std::sin(7.0 * i)));
+  const double f = prior.evaluate(&g);
+  ASSERT_GT(f, 0.0);
+  ASSERT_EQ(g.size(), 2 * (spline->numControlPoints() - first_free));
+  const double h = 1e-6;
+  for (int k = 0; k < g.size(); ++k) {
+    const int i = first_free + k / 2;
+    const Vec2 P = spline->controlPoints()[i];
+    Vec2 d = Vec2::Zero();
+    d(k % 2) = h;
+    spline->setControlPoint(i, P + d);
+    const double fp = prior.evaluate(nullptr);
+    spline->setControlPoint(i, P - d);
+    const double fm = prior.evaluate(nullptr);
+    spline->setControlPoint(i, P);
+    EXPECT_NEAR(g[k], (fp - fm) / (2 * h), 1e-5 * g.norm()) << "param " << k;
+  }
+}
+
 TEST(Backend, DeformationPriorGradientMatchesCentralFiniteDifferencesAndSparesQuadraticMoves) {
   // No volumes: the cost is the deformation prior alone (normaliser 1).
   auto spline = std::make_shared<BSpline>(*truthSpline());
@@ -265,7 +308,7 @@ TEST(Backend, DeformationPriorGradientMatchesCentralFiniteDifferencesAndSparesQu
   MultiVolumeObjective objective(spline, testExtrinsics(), first_free, {}, nullptr);
   const Eigen::VectorXd p0 = objective.freeParams();
   const double w = 0.7;
-  MultiVolumeCost cost(&objective, p0, 0.02, 1.0, nullptr, w);
+  MultiVolumeCost cost(&objective, p0, 0.02, 1.0, {}, w);
   const int n = cost.NumParameters();
   Eigen::VectorXd x(n), g(n);
   for (int k = 0; k < n; ++k) x[k] = std::sin(1.7 * k) + 0.3 * std::cos(0.4 * k * k);

@@ -6,6 +6,7 @@
 #include <ceres/first_order_function.h>
 
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -33,12 +34,13 @@ struct BackendOptions {
   size_t min_events_per_volume = 300;    // fewer events: the volume is skipped [events]
   int max_iterations = 20;               // LBFGS iterations per refinement
   double function_tolerance = 1e-6;      // LBFGS stops when the relative cost change is below this [1]
-  double step_scale_m = 0.02;            // solver unit of a control-point coordinate [m]
+  double step_scale_per_span = 0.25;     // solver unit of a control-point coordinate, as a fraction of the distance driven per knot span (at least 1 mm) [1]
   double init_sample_interval_s = 0.05;  // spacing of the dead-reckoned poses fitted [s]
   double smoothness_weight = 0.05;       // second-difference prior of the initial fit [1]
   bool interpolate_arc_rates = true;     // dead reckoning with rates linear between the arcs' middles (false: steps)
   double speed_prior_weight = 10.0;      // relative-speed prior vs the normalised VWE (0: off) [1]
   double deformation_weight = 1.0;       // third-difference prior on the control-point moves (0: off) [1]
+  double arc_rate_prior_weight = 0.0;    // the arcs' mean yaw rates as measurements, per (deg/s)^2 vs the normalised VWE (0: off) [1]
   double max_backwards_jump_s = 0.05;    // arcs older than newest - this reset the back-end [s]
   double output_rate_hz = 20.0;          // rate of the sampled trajectory (backend.tum) [Hz]
   uint64_t seed = 1;                     // subsampling seed
@@ -96,18 +98,26 @@ class MultiVolumeObjective {
   size_t evaluations_ = 0;
 };
 
+/// A soft prior on the free control points of a spline (part of the back-end's cost).
+class SplinePrior {
+ public:
+  virtual ~SplinePrior() = default;
+  /// Value at the spline's current control points; gradient (if not null, sized and written
+  /// here) w.r.t. the free ones.
+  virtual double evaluate(Eigen::VectorXd* gradient) const = 0;
+};
+
 /// Soft prior that keeps the speed |c'(u)| of the free part of the spline near target speeds
 /// (the scale the front-end's v gave): weight / K * sum_k ((|c'(u_k)| - v_k) / v_k)^2. The VWE
 /// fixes the scale only through the overlap of the volumes, and rays beyond the depth range bias
 /// it (shrinking the path brings far points into the grid).
-class SpeedPrior {
+class SpeedPrior : public SplinePrior {
  public:
   /// Targets are the spline's current speeds at u_k (samples with speed below min_speed_mps or in
   /// a standstill are left out).
   SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free, const std::vector<double>& u,
              double weight, double min_speed_mps = 0.05);
-  /// Value at the spline's current control points; gradient (if not null) w.r.t. the free ones.
-  double evaluate(Eigen::VectorXd* gradient) const;
+  double evaluate(Eigen::VectorXd* gradient) const override;
   size_t numSamples() const { return u_.size(); }
 
  private:
@@ -117,7 +127,32 @@ class SpeedPrior {
   double weight_;
 };
 
-/// Ceres view of a MultiVolumeObjective: minimises -sum(var)/sum(var at x0) (+ a SpeedPrior, + a
+/// The front-end's arcs as measurements of the spline's mean yaw rate over their windows:
+/// weight / K * sum_k ((psi(b_k) - psi(a_k)) / (b_k - a_k) - omega_k)^2 with the residual in
+/// deg/s. Each arc measures the heading change over its own window (steps at the windows' borders
+/// integrate to the same heading), so the prior holds the heading where the VWE says little (slow
+/// driving, where a tiny move of the control points turns the tangent) without pulling towards
+/// a dead reckoning's interpolation between the arcs.
+class ArcRatePrior : public SplinePrior {
+ public:
+  struct Arc {
+    double u_start, u_end;  // spline time [s]
+    double omega;           // mean yaw rate [rad/s]
+  };
+  /// Arcs whose window the free control points do not reach, or shorter than 1 ms, are left out.
+  ArcRatePrior(std::shared_ptr<const BSpline> spline, int first_free, const std::vector<Arc>& arcs,
+               double weight);
+  double evaluate(Eigen::VectorXd* gradient) const override;
+  size_t numArcs() const { return arcs_.size(); }
+
+ private:
+  std::shared_ptr<const BSpline> spline_;
+  int first_free_;
+  std::vector<Arc> arcs_;
+  double weight_;
+};
+
+/// Ceres view of a MultiVolumeObjective: minimises -sum(var)/sum(var at x0) (+ the priors, + a
 /// deformation prior) over x = (params - params0) / step_scale, so that the start is x = 0 with
 /// cost -1. The deformation prior is deformation_weight * sum_i |x_i - 3 x_{i+1} + 3 x_{i+2} -
 /// x_{i+3}|^2 over the control-point moves x_i (the fixed points before the free ones count as
@@ -126,7 +161,7 @@ class SpeedPrior {
 class MultiVolumeCost : public ceres::FirstOrderFunction {
  public:
   MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0, double step_scale,
-                  double normaliser, const SpeedPrior* prior = nullptr,
+                  double normaliser, std::vector<const SplinePrior*> priors = {},
                   double deformation_weight = 0.0);
   bool Evaluate(const double* x, double* cost, double* gradient) const override;
   int NumParameters() const override { return static_cast<int>(params0_.size()); }
@@ -136,7 +171,7 @@ class MultiVolumeCost : public ceres::FirstOrderFunction {
   MultiVolumeObjective* objective_;
   Eigen::VectorXd params0_;
   double step_scale_, normaliser_;
-  const SpeedPrior* prior_;
+  std::vector<const SplinePrior*> priors_;
   double deformation_weight_;
 };
 
@@ -211,6 +246,7 @@ class Backend {
   // The newest arc the chain reaches the middle of (interpolate_arc_rates): the chain ends at its
   // t_ref and continues with its rates; the next arc appends the ramp between the two middles.
   bool has_last_rates_ = false;
+  std::deque<ArcEstimate> arcs_;  // moving arcs of the last window (arc_rate_prior_weight)
   double last_omega_ = 0.0, last_v_ = 0.0;
   int64_t newest_arc_ns_ = -1;
   int64_t processed_ns_ = -1;
