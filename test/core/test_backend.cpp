@@ -63,6 +63,12 @@ BackendOptions testOptions() {
   o.volume.z_min_m = 0.8;
   o.volume.z_max_m = 10;
   o.max_events_per_volume = 3000;
+  // Short volumes over a 3.2 s scene (several refinements), and the VWE alone: these arcs are
+  // biased on purpose, which the arcs' yaw-rate prior would hold.
+  o.tau1_s = 0.2;
+  o.tau2_s = 0.4;
+  o.window_s = 2.0;
+  o.arc_rate_prior_weight = 0.0;
   return o;
 }
 

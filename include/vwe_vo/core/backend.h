@@ -26,21 +26,21 @@ struct BackendOptions {
   VolumeOptions volume;                  // the VWE grid of every back-end volume
   int degree = 3;                        // spline degree p (1..5)
   double knot_spacing_s = 0.2;           // uniform knot span [s]
-  double tau1_s = 0.2;                   // spacing of the volume reference times [s]
-  double tau2_s = 0.4;                   // events span of one volume [s], > tau1_s
-  double window_s = 2.0;                 // length of the optimised sliding window [s]
+  double tau1_s = 0.25;                  // spacing of the volume reference times [s]
+  double tau2_s = 1.0;                   // events span of one volume [s], > tau1_s (parallax: 0.4 s gained nothing over the front-end)
+  double window_s = 1.6;                 // length of the optimised sliding window [s]
   double update_interval_s = 1.0;        // new arcs that trigger a refinement [s]
-  size_t max_events_per_volume = 4000;   // events voted per volume (uniform subsampling)
+  size_t max_events_per_volume = 10000;  // events voted per volume (uniform subsampling)
   size_t min_events_per_volume = 300;    // fewer events: the volume is skipped [events]
   int max_iterations = 20;               // LBFGS iterations per refinement
-  double function_tolerance = 1e-6;      // LBFGS stops when the relative cost change is below this [1]
+  double function_tolerance = 1e-5;      // LBFGS stops when the relative cost change is below this [1]
   double step_scale_per_span = 0.25;     // solver unit of a control-point coordinate, as a fraction of the distance driven per knot span (at least 1 mm) [1]
   double init_sample_interval_s = 0.05;  // spacing of the dead-reckoned poses fitted [s]
   double smoothness_weight = 0.05;       // second-difference prior of the initial fit [1]
   bool interpolate_arc_rates = true;     // dead reckoning with rates linear between the arcs' middles (false: steps)
   double speed_prior_weight = 10.0;      // relative-speed prior vs the normalised VWE (0: off) [1]
   double deformation_weight = 1.0;       // third-difference prior on the control-point moves (0: off) [1]
-  double arc_rate_prior_weight = 0.0;    // the arcs' mean yaw rates as measurements, per (deg/s)^2 vs the normalised VWE (0: off) [1]
+  double arc_rate_prior_weight = 1e-2;   // the arcs' mean yaw rates as measurements, per (deg/s)^2 vs the normalised VWE (0: off) [1]
   double max_backwards_jump_s = 0.05;    // arcs older than newest - this reset the back-end [s]
   double output_rate_hz = 20.0;          // rate of the sampled trajectory (backend.tum) [Hz]
   uint64_t seed = 1;                     // subsampling seed
