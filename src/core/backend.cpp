@@ -275,6 +275,7 @@ void Backend::reset() {
   buffer_.clear();
   standstills_ns_.clear();
   chain_.reset();
+  steps_.reset();
   has_last_rates_ = false;
   arcs_.clear();
   newest_arc_ns_ = processed_ns_ = -1;
@@ -309,12 +310,16 @@ bool Backend::addArc(const ArcEstimate& arc) {
     reset();
     was_reset = true;
   }
-  if (!chain_) chain_ = std::make_unique<ArcChain>(Pose3::Identity(), arc.t_start_ns);
+  if (!chain_) {
+    chain_ = std::make_unique<ArcChain>(Pose3::Identity(), arc.t_start_ns);
+    steps_ = std::make_unique<ArcChain>(Pose3::Identity(), arc.t_start_ns);
+  }
   if (newest_arc_ns_ >= 0 && arc.t_end_ns <= newest_arc_ns_) return was_reset;
   const bool still = arc.status == ArcStatus::kStandstill;
   const double omega = still || !std::isfinite(arc.omega) ? 0.0 : arc.omega;
   const double v = still || !std::isfinite(arc.v) ? 0.0 : arc.v;
   const int64_t from = newest_arc_ns_ >= 0 ? newest_arc_ns_ : arc.t_start_ns;
+  steps_->append(omega, v, arc.t_end_ns);
   if (!options_.interpolate_arc_rates) {
     chain_->append(omega, v, arc.t_end_ns);
   } else if (still) {
@@ -378,7 +383,7 @@ void Backend::update(int64_t t_new_ns) {
   refine(t_new_ns);
   processed_ns_ = t_new_ns;
   T_anchor_ = spline_->T_odom_base(spline_->toSplineTime(t_new_ns)) *
-              chain_->T_odom_base(t_new_ns).inverse();
+              steps_->T_odom_base(t_new_ns).inverse();
   ++stats_.updates;
   // Bounded memory: events before the next window cannot be used again.
   const int64_t keep_from = t_new_ns - secToNs(options_.window_s + options_.tau2_s);
@@ -575,7 +580,7 @@ bool Backend::poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega)
   constexpr int64_t kRateStep_ns = 20000000;  // central differences for the rates [ns]
   auto pose = [&](int64_t t) {
     if (spline_ && t <= processed_ns_) return spline_->T_odom_base(spline_->toSplineTime(t));
-    return Pose3(T_anchor_ * chain_->T_odom_base(t));
+    return Pose3(T_anchor_ * steps_->T_odom_base(t));
   };
   *T_odom_base = pose(t_ns);
   if (v || omega) {

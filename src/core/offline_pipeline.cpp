@@ -43,7 +43,18 @@ void OfflinePipeline::runBackend(const EventVector& events, size_t first_new_arc
   const auto t0 = Clock::now();
   backend_->addEvents(events);
   for (size_t i = first_new_arc; i < arcs_.size(); ++i) {
-    backend_->addArc(arcs_[i]);
+    if (backend_->addArc(arcs_[i])) {
+      odometry_.reset();
+      next_odom_ns_ = -1;
+    }
+    // As backend_node does: the odometry of a new arc goes out before the refinement it triggers.
+    const int64_t step = std::max<int64_t>(1, secToNs(1.0 / config_.backend.output_rate_hz));
+    if (next_odom_ns_ < 0) next_odom_ns_ = backend_->oldestArcTime();
+    for (; next_odom_ns_ >= 0 && next_odom_ns_ <= backend_->newestArcTime(); next_odom_ns_ += step) {
+      Pose3 T;
+      if (odometry_.next(*backend_, next_odom_ns_, &T, nullptr, nullptr))
+        odometry_trajectory_.push_back({next_odom_ns_, T});
+    }
     backend_->process();
   }
   if (at_end) backend_->finish();
@@ -272,6 +283,7 @@ void OfflinePipeline::writeOutputs(const std::string& out_dir, const nlohmann::j
   writeArcsCsv(out_dir + "/arcs.csv", arcs_);
   if (backend_ && backend_->hasSpline()) {
     writeTum(out_dir + "/backend.tum", backendTrajectory());
+    writeTum(out_dir + "/odom.tum", odometry_trajectory_);
     writeSplineJson(out_dir + "/spline.json", backend_->spline());
   }
   if (map_) writePly(out_dir + "/map.ply", toPlyCloud(map_->points()));

@@ -44,6 +44,10 @@ class OfflinePipeline {
   Trajectory3 backendTrajectory() const;
   /// The back-end (null if config.frontend_only).
   const Backend* backend() const { return backend_.get(); }
+  /// The continuous odometry backend_node would publish live (/vwe/odom, REP-105): each pose
+  /// composed from the back-end's estimate when its arc arrived, before the refinement it
+  /// triggers, at backend.output_rate_hz; a pose once out is never changed.
+  const Trajectory3& odometryTrajectory() const { return odometry_trajectory_; }
 
   /// Mapping (EMVS) in a second pass over the events, after finish(): on the back-end's refined
   /// trajectory, or the front-end's dead reckoning with frontend_only. With depth_png_dir, a
@@ -54,8 +58,8 @@ class OfflinePipeline {
   /// The fused cloud (null before startMapping()).
   const GlobalMap* map() const { return map_.get(); }
 
-  /// Writes frontend.tum, arcs.csv, report.json and, with the back-end, backend.tum and
-  /// spline.json, with mapping map.ply (binary), with the baseline baseline.tum, into out_dir
+  /// Writes frontend.tum, arcs.csv, report.json and, with the back-end, backend.tum, odom.tum
+  /// (odometryTrajectory()) and spline.json, with mapping map.ply (binary), with the baseline baseline.tum, into out_dir
   /// (created if missing).
   void writeOutputs(const std::string& out_dir, const nlohmann::json& extra = {}) const;
   nlohmann::json report() const;
@@ -71,6 +75,9 @@ class OfflinePipeline {
   CameraModel camera_;
   Frontend frontend_;
   std::unique_ptr<Backend> backend_;
+  ContinuousOdometry odometry_;
+  Trajectory3 odometry_trajectory_;
+  int64_t next_odom_ns_ = -1;
   std::unique_ptr<FrameBaseline> baseline_;
   std::vector<ArcEstimate> arcs_;
   size_t events_ = 0;
