@@ -25,7 +25,8 @@ for s in "${seqs[@]}"; do
   "$bin/vwe_vo_offline" --bag "$seq_dir/$s.bag" --config "$cfg" --use-odom --baseline --depth-png --out "$d"
   echo "[demo] 3/4 $s: evaluation"
   cp "$seq_dir/groundtruth.txt" "$d/groundtruth.tum"
-  for m in frontend backend baseline; do
+  # odom: the continuous odometry backend_node would publish live (/vwe/odom).
+  for m in frontend backend odom baseline; do
     [ -f "$d/$m.tum" ] || continue
     arcs=()
     [ "$m" = frontend ] && arcs=(--arcs "$d/arcs.csv")
