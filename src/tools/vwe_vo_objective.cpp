@@ -2,7 +2,7 @@
 // recording, to see why a window's omega came out where it did.
 //
 //   vwe_vo_objective --bag FILE --t S [--gt GT.tum] [--config YAML] [--duration S] [--v V]
-//                    [--range DEG_S] [--step DEG_S] [--out CSV]
+//                    [--range DEG_S] [--step DEG_S] [--out CSV] [--dump-events F] [--events F]
 //
 // Reads the events of [t - duration/2, t + duration/2) (t in seconds, the bag's time base),
 // subsamples them as the front-end does, and writes `omega_deg_s,variance` for omega in
@@ -10,6 +10,9 @@
 // come from the ground truth (TUM), the scan is centred on the truth and the header says where
 // the objective peaks relative to it; without it the speed is --v (default: the config's
 // nominal speed) and the scan is centred on 0. scripts/plot_objective.py draws the CSV.
+// --dump-events writes the window's events (`t_ns x y p`, one a line) before subsampling;
+// --events reads the window from such a file instead (e.g. a filtered dump), to find which
+// events pull the peak.
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
@@ -31,10 +34,13 @@ namespace {
 constexpr const char* kUsage =
     "usage: vwe_vo_objective --bag FILE --t S [--gt GT.tum] [--config YAML] [--duration S]\n"
     "                        [--v V] [--range DEG_S] [--step DEG_S] [--events-topic T] [--out CSV]\n"
+    "                        [--dump-events FILE] [--events FILE]\n"
     "  Writes the front-end objective (VWE variance) over the yaw rate for the window of\n"
     "  --duration (default: the config's window_duration_s) centred at --t [s, bag time] as CSV\n"
     "  `omega_deg_s,variance` (stdout unless --out). With --gt (TUM of base_link) the speed and\n"
-    "  the true yaw rate come from the ground truth and the scan is centred on the truth.\n";
+    "  the true yaw rate come from the ground truth and the scan is centred on the truth.\n"
+    "  --dump-events writes the window's events (`t_ns x y p`) before subsampling; --events\n"
+    "  reads the window from such a file (events outside the window are ignored).\n";
 
 double yawOf(const vwe_vo::Pose3& T) { return std::atan2(T.linear()(1, 0), T.linear()(0, 0)); }
 
@@ -86,20 +92,36 @@ int main(int argc, char** argv) {
     }
 
     const std::string topic = args.count("--events-topic") ? args["--events-topic"] : "/dvs/events";
-    rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
-    // Packets are stamped with their first event: start a little early.
-    rosbag::View view(bag, rosbag::TopicQuery(topic), vwe_vo::toRosTime(t0 - vwe_vo::secToNs(0.2)),
-                      vwe_vo::toRosTime(t1));
-    vwe_vo::EventVector packet, window;
-    vwe_vo::EventConversionStats conv;
-    for (const rosbag::MessageInstance& m : view) {
-      const auto msg = m.instantiate<vwe_vo::EventArray>();
-      if (!msg) continue;
-      vwe_vo::eventsFromMsg(*msg, &packet, &conv);
-      for (const vwe_vo::PixelEvent& e : packet)
-        if (e.t_ns >= t0 && e.t_ns < t1) window.push_back(e);
+    vwe_vo::EventVector window;
+    if (args.count("--events")) {
+      std::ifstream in(args["--events"]);
+      if (!in) throw std::runtime_error("cannot read " + args["--events"]);
+      long long t;
+      int x, y, p;
+      while (in >> t >> x >> y >> p)
+        if (t >= t0 && t < t1) window.push_back({int64_t(t), uint16_t(x), uint16_t(y), int8_t(p)});
+    } else {
+      rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
+      // Packets are stamped with their first event: start a little early.
+      rosbag::View view(bag, rosbag::TopicQuery(topic), vwe_vo::toRosTime(t0 - vwe_vo::secToNs(0.2)),
+                        vwe_vo::toRosTime(t1));
+      vwe_vo::EventVector packet;
+      vwe_vo::EventConversionStats conv;
+      for (const rosbag::MessageInstance& m : view) {
+        const auto msg = m.instantiate<vwe_vo::EventArray>();
+        if (!msg) continue;
+        vwe_vo::eventsFromMsg(*msg, &packet, &conv);
+        for (const vwe_vo::PixelEvent& e : packet)
+          if (e.t_ns >= t0 && e.t_ns < t1) window.push_back(e);
+      }
     }
     if (window.empty()) throw std::runtime_error("no events on " + topic + " in the window");
+    if (args.count("--dump-events")) {
+      std::ofstream dump(args["--dump-events"]);
+      if (!dump) throw std::runtime_error("cannot write " + args["--dump-events"]);
+      for (const vwe_vo::PixelEvent& e : window)
+        dump << e.t_ns << " " << e.x << " " << e.y << " " << int(e.polarity) << "\n";
+    }
 
     const vwe_vo::CameraModel camera(cfg.camera);
     vwe_vo::Frontend frontend(cfg.frontend, camera, cfg.T_base_cam);
