@@ -21,6 +21,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <sstream>
 #include <string>
 
 #include "vwe_vo/EventArray.h"
@@ -96,10 +97,16 @@ int main(int argc, char** argv) {
     if (args.count("--events")) {
       std::ifstream in(args["--events"]);
       if (!in) throw std::runtime_error("cannot read " + args["--events"]);
-      long long t;
-      int x, y, p;
-      while (in >> t >> x >> y >> p)
+      std::string line;
+      for (size_t line_no = 1; std::getline(in, line); ++line_no) {
+        std::istringstream fields(line);
+        long long t;
+        int x, y, p;
+        if (!(fields >> t >> x >> y >> p) || x < 0 || y < 0 || x > 65535 || y > 65535)
+          throw std::runtime_error(args["--events"] + ":" + std::to_string(line_no) +
+                                   ": expected `t_ns x y p`, got '" + line + "'");
         if (t >= t0 && t < t1) window.push_back({int64_t(t), uint16_t(x), uint16_t(y), int8_t(p)});
+      }
     } else {
       rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
       // Packets are stamped with their first event: start a little early.
