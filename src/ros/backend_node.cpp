@@ -241,7 +241,8 @@ void BackendNode::handleArc(ArcEstimate arc) {
                       nsToSec(arc.t_ref_ns), toString(arc.status), arcs_lost_);
     arc.omega = have_good_arc_ ? last_good_arc_.omega : 0.0;
     arc.v = have_good_arc_ ? last_good_arc_.v : 0.0;
-    arc.status = ArcStatus::kOk;
+    // The status stays: the back-end dead-reckons through the arc at the held rates but takes
+    // only measured (OK) arcs as yaw-rate measurements (arc_rate_prior_weight).
   } else if (arc.status == ArcStatus::kOk) {
     last_good_arc_ = arc;
     have_good_arc_ = true;
