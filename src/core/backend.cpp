@@ -276,7 +276,7 @@ void Backend::reset() {
   standstills_ns_.clear();
   chain_.reset();
   steps_.reset();
-  has_last_rates_ = false;
+  has_last_rates_ = has_good_rates_ = false;
   arcs_.clear();
   newest_arc_ns_ = processed_ns_ = -1;
   first_free_ = 0;
@@ -316,8 +316,16 @@ bool Backend::addArc(const ArcEstimate& arc) {
   }
   if (newest_arc_ns_ >= 0 && arc.t_end_ns <= newest_arc_ns_) return was_reset;
   const bool still = arc.status == ArcStatus::kStandstill;
-  const double omega = still || !std::isfinite(arc.omega) ? 0.0 : arc.omega;
-  const double v = still || !std::isfinite(arc.v) ? 0.0 : arc.v;
+  const bool measured = arc.status == ArcStatus::kOk && std::isfinite(arc.omega) && std::isfinite(arc.v);
+  if (measured) {
+    good_omega_ = arc.omega;
+    good_v_ = arc.v;
+    has_good_rates_ = true;
+  } else if (!still) {
+    ++stats_.arcs_held;  // no motion estimate: the last measured rates are held through it
+  }
+  const double omega = still ? 0.0 : measured ? arc.omega : has_good_rates_ ? good_omega_ : 0.0;
+  const double v = still ? 0.0 : measured ? arc.v : has_good_rates_ ? good_v_ : 0.0;
   const int64_t from = newest_arc_ns_ >= 0 ? newest_arc_ns_ : arc.t_start_ns;
   steps_->append(omega, v, arc.t_end_ns);
   if (!options_.interpolate_arc_rates) {
@@ -348,7 +356,7 @@ bool Backend::addArc(const ArcEstimate& arc) {
     last_v_ = v;
     has_last_rates_ = true;
   }
-  if (arc.status == ArcStatus::kOk && std::isfinite(arc.omega)) {
+  if (measured) {
     arcs_.push_back(arc);
     // Bounded: the next refinement's window starts at most window_s before its newest arc.
     const int64_t keep_ns = secToNs(options_.window_s + options_.update_interval_s);

@@ -177,7 +177,6 @@ void BackendNode::resetBackend(const std::string& why) {
   reported_resets_ = backend_->stats().resets;
   next_odom_ns_ = -1;
   odometry_.reset();
-  have_good_arc_ = false;
   path_.poses.clear();
   ROS_WARN("backend_node: %s: back-end reset, the trajectory restarts at the identity (reset %zu)",
            why.c_str(), backend_->stats().resets);
@@ -197,7 +196,6 @@ void BackendNode::handleEvents(const EventVector& events) {
     reported_resets_ = backend_->stats().resets;
     next_odom_ns_ = -1;
     odometry_.reset();
-    have_good_arc_ = false;
     path_.poses.clear();
     ROS_WARN(
         "backend_node: event time jumped back by %.3f s (%.3f -> %.3f s; a looped bag?): "
@@ -234,18 +232,11 @@ void BackendNode::handleArc(ArcEstimate arc) {
   }
   if (arc.status == ArcStatus::kLost || arc.status == ArcStatus::kLowEvents ||
       !std::isfinite(arc.omega) || !std::isfinite(arc.v)) {
-    // No motion estimate: hold the last good one (dead reckoning through the gap).
+    // No motion estimate: the back-end holds the last measured rates through it.
     ++arcs_lost_;
     ROS_WARN_THROTTLE(10, "backend_node: arc at %.3f s is %s: the last good yaw rate and speed "
                           "are held through it (%zu so far)",
                       nsToSec(arc.t_ref_ns), toString(arc.status), arcs_lost_);
-    arc.omega = have_good_arc_ ? last_good_arc_.omega : 0.0;
-    arc.v = have_good_arc_ ? last_good_arc_.v : 0.0;
-    // The status stays: the back-end dead-reckons through the arc at the held rates but takes
-    // only measured (OK) arcs as yaw-rate measurements (arc_rate_prior_weight).
-  } else if (arc.status == ArcStatus::kOk) {
-    last_good_arc_ = arc;
-    have_good_arc_ = true;
   }
   if (backend_->addArc(arc)) {
     ++loops_;

@@ -476,6 +476,33 @@ TEST(Backend, InitialGuessRampsTheRatesBetweenTheArcsMiddlesOdometryKeepsEachArc
   }
 }
 
+TEST(Backend, UnmeasuredArcsAreDeadReckonedAtTheLastMeasuredRates) {
+  // OK (0.3 rad/s), LOST with a wild yaw rate, LOW_EVENTS with NaN, OK again: the two without a
+  // motion estimate take the last measured rates (as backend_node warns), and only the OK ones
+  // count as yaw-rate measurements.
+  const CameraModel cam(testCalibration());
+  Backend b(testOptions(), cam, testExtrinsics());
+  const ArcStatus status[] = {ArcStatus::kOk, ArcStatus::kLost, ArcStatus::kLowEvents, ArcStatus::kOk};
+  const double omega[] = {0.3, 5.0, std::nan(""), 0.1};
+  for (int k = 0; k < 4; ++k) {
+    ArcEstimate a;
+    a.t_start_ns = kEpoch + secToNs(0.3 * k);
+    a.t_end_ns = kEpoch + secToNs(0.3 * (k + 1));
+    a.t_ref_ns = (a.t_start_ns + a.t_end_ns) / 2;
+    a.omega = omega[k];
+    a.v = 0.4;
+    a.status = status[k];
+    b.addArc(a);
+  }
+  EXPECT_EQ(b.stats().arcs_held, 2u);
+  Pose3 T;
+  ASSERT_TRUE(b.poseAt(kEpoch + secToNs(0.9), &T, nullptr, nullptr));
+  EXPECT_NEAR(yawOf(T.linear()), 3 * 0.3 * 0.3, 1e-9);
+  ASSERT_TRUE(b.poseAt(kEpoch + secToNs(1.2), &T, nullptr, nullptr));
+  EXPECT_NEAR(yawOf(T.linear()), 3 * 0.3 * 0.3 + 0.1 * 0.3, 1e-9);
+  EXPECT_TRUE(T.matrix().allFinite());
+}
+
 TEST(Backend, StandstillGivesFinitePosesAndSkipsVolumes) {
   Scene sc;
   std::vector<ArcEstimate> arcs = truthArcs(*sc.truth, 0.0);

@@ -52,6 +52,7 @@ struct BackendStats {
   size_t events_outside = 0;       // outside the sensor: dropped
   size_t events_out_of_order = 0;  // older than the newest buffered event: dropped
   size_t arcs_in = 0;
+  size_t arcs_held = 0;        // LOST / LOW_EVENTS / non-finite arcs dead-reckoned at the last measured rates
   size_t updates = 0;          // refinements run
   size_t volumes = 0;          // volumes optimised (summed over refinements)
   size_t volumes_skipped = 0;  // in a standstill or with too few events
@@ -201,7 +202,9 @@ class Backend {
   /// window are dropped as time advances.
   void addEvents(const EventVector& events);
   /// Front-end arcs in time order; an arc older than the newest by more than
-  /// max_backwards_jump_s resets the back-end (returns true).
+  /// max_backwards_jump_s resets the back-end (returns true). LOST and LOW_EVENTS arcs (or ones
+  /// with non-finite rates) carry no motion estimate: they are dead-reckoned at the last
+  /// measured rates (counted in arcs_held) and are not yaw-rate measurements.
   bool addArc(const ArcEstimate& arc);
   /// Runs a refinement if update_interval_s of new arcs have arrived; returns true if it did.
   bool process();
@@ -254,7 +257,9 @@ class Backend {
   // The newest arc the chain reaches the middle of (interpolate_arc_rates): the chain ends at its
   // t_ref and continues with its rates; the next arc appends the ramp between the two middles.
   bool has_last_rates_ = false;
-  std::deque<ArcEstimate> arcs_;  // moving arcs of the last window (arc_rate_prior_weight)
+  std::deque<ArcEstimate> arcs_;  // measured (OK) arcs of the last window (arc_rate_prior_weight)
+  bool has_good_rates_ = false;   // the newest measured arc's rates (held through unmeasured arcs)
+  double good_omega_ = 0.0, good_v_ = 0.0;
   double last_omega_ = 0.0, last_v_ = 0.0;
   int64_t newest_arc_ns_ = -1;
   int64_t processed_ns_ = -1;

@@ -101,8 +101,6 @@ class BackendNode {
   int64_t newest_arc_ns_ = -1;
   int64_t next_odom_ns_ = -1;  // data time of the next /vwe/odom
   ContinuousOdometry odometry_;  // /vwe/odom and tf without jumps at refinements
-  ArcEstimate last_good_arc_;
-  bool have_good_arc_ = false;
   size_t arcs_lost_ = 0, arcs_stale_ = 0, gaps_ = 0, loops_ = 0, refinements_ = 0;
   size_t refinements_merged_ = 0;  // update intervals folded into a later refinement (behind)
   size_t reported_resets_ = 0, reported_out_of_order_ = 0;
