@@ -226,6 +226,7 @@ nlohmann::json OfflinePipeline::report() const {
         {"volumes_skipped", b.volumes_skipped},
         {"objective_evaluations", b.evaluations},
         {"refinements_rejected", b.rejected},
+        {"arcs_held", b.arcs_held},
         {"resets", b.resets},
         {"events_outside_sensor", b.events_outside},
         {"events_out_of_order", b.events_out_of_order},
