@@ -235,8 +235,8 @@ TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
 
 /// Moves the free control points of `spline` by up to `move_m`, then checks the prior's analytic
 /// gradient against central differences (tolerance relative to the gradient's norm).
-void expectGradientMatchesCentralDifferences(BSpline* spline, int first_free, const SplinePrior& prior,
-                                             double move_m, double rel_tol) {
+static void expectGradientMatchesCentralDifferences(BSpline* spline, int first_free, const SplinePrior& prior,
+                                                    double move_m, double rel_tol) {
   for (int i = first_free; i < spline->numControlPoints(); ++i)
     spline->setControlPoint(
         i, spline->controlPoints()[i] + move_m * Vec2(std::cos(2.0 * i), std::sin(7.0 * i)));
@@ -431,6 +431,18 @@ TEST(Backend, ContinuousOdometryHasNoJumpsAtRefinements) {
   EXPECT_LT(max_increment_error, 1e-9);
 }
 
+/// The k-th 0.3 s front-end window from kEpoch as an arc at 0.4 m/s.
+static ArcEstimate windowArc(int k, double omega, ArcStatus status = ArcStatus::kOk) {
+  ArcEstimate a;
+  a.t_start_ns = kEpoch + secToNs(0.3 * k);
+  a.t_end_ns = kEpoch + secToNs(0.3 * (k + 1));
+  a.t_ref_ns = (a.t_start_ns + a.t_end_ns) / 2;
+  a.omega = omega;
+  a.v = 0.4;
+  a.status = status;
+  return a;
+}
+
 TEST(Backend, InitialGuessRampsTheRatesBetweenTheArcsMiddlesOdometryKeepsEachArcsTurn) {
   // Arcs of 0.3 s whose yaw rates step 0 -> 0.6 -> 0.6 -> 0 -> -0.3 rad/s: between the middles
   // of two arcs the rates ramp, as integrateArcs() (the front-end's trajectory) does; steps at
@@ -439,15 +451,7 @@ TEST(Backend, InitialGuessRampsTheRatesBetweenTheArcsMiddlesOdometryKeepsEachArc
   BackendOptions o = testOptions();
   std::vector<ArcEstimate> arcs;
   const double omegas[] = {0.0, 0.6, 0.6, 0.0, -0.3};
-  for (int k = 0; k < 5; ++k) {
-    ArcEstimate a;
-    a.t_start_ns = kEpoch + secToNs(0.3 * k);
-    a.t_end_ns = kEpoch + secToNs(0.3 * (k + 1));
-    a.t_ref_ns = (a.t_start_ns + a.t_end_ns) / 2;
-    a.omega = omegas[k];
-    a.v = 0.4;
-    arcs.push_back(a);
-  }
+  for (int k = 0; k < 5; ++k) arcs.push_back(windowArc(k, omegas[k]));
   const Trajectory3 ramp = integrateArcs(arcs, secToNs(0.001));
   for (bool interpolate : {true, false}) {
     o.interpolate_arc_rates = interpolate;
@@ -484,16 +488,7 @@ TEST(Backend, UnmeasuredArcsAreDeadReckonedAtTheLastMeasuredRates) {
   Backend b(testOptions(), cam, testExtrinsics());
   const ArcStatus status[] = {ArcStatus::kOk, ArcStatus::kLost, ArcStatus::kLowEvents, ArcStatus::kOk};
   const double omega[] = {0.3, 5.0, std::nan(""), 0.1};
-  for (int k = 0; k < 4; ++k) {
-    ArcEstimate a;
-    a.t_start_ns = kEpoch + secToNs(0.3 * k);
-    a.t_end_ns = kEpoch + secToNs(0.3 * (k + 1));
-    a.t_ref_ns = (a.t_start_ns + a.t_end_ns) / 2;
-    a.omega = omega[k];
-    a.v = 0.4;
-    a.status = status[k];
-    b.addArc(a);
-  }
+  for (int k = 0; k < 4; ++k) b.addArc(windowArc(k, omega[k], status[k]));
   EXPECT_EQ(b.stats().arcs_held, 2u);
   Pose3 T;
   ASSERT_TRUE(b.poseAt(kEpoch + secToNs(0.9), &T, nullptr, nullptr));
