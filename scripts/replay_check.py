@@ -38,6 +38,7 @@ PATTERNS = {
     "frontend_node": {
         "windows": r"frontend_node: (\d+) windows \(",
         "windows_split": r"\((\d+) split in two\)",
+        "windows_one_sided": r"\((\d+) one-sided\)",
         "arcs": r"-> (\d+) arcs",
         "arcs_ok": r"\((\d+) ok,",
         "windows_lost": r"(\d+) lost,",

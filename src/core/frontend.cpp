@@ -104,6 +104,27 @@ void FrontendOptions::validate() const {
   if (!(rescan_confidence >= 0 && rescan_confidence < 1)) fail("rescan_confidence must be in [0, 1)");
   if (!(gyro_prior_half_range_rad_s > 0)) fail("gyro_prior_half_range_rad_s must be positive");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
+  if (!(one_sided_balance >= 0 && one_sided_balance < 1)) fail("one_sided_balance must be in [0, 1)");
+  if (one_sided_balance > 0 && !(one_sided_z_min_m > 0 && one_sided_z_min_m < volume.z_max_m))
+    fail("one_sided_z_min_m must be in (0, volume.z_max_m)");
+}
+
+bool forwardPixel(const CameraModel& camera, const Pose3& T_base_cam, Vec2* pixel) {
+  const Vec3 d = T_base_cam.linear().transpose() * Vec3::UnitX();  // in the camera frame
+  if (!(d.z() > 1e-3)) return false;
+  const CameraCalibration& c = camera.calibration();
+  *pixel = Vec2(c.fx * d.x() / d.z() + c.cx, c.fy * d.y() / d.z() + c.cy);
+  return true;
+}
+
+double sideBalance(const EventVector& events, const Vec2& pixel) {
+  size_t left = 0, right = 0;
+  for (const PixelEvent& e : events) {
+    if (e.y >= pixel.y()) continue;
+    if (e.x < pixel.x()) ++left; else ++right;
+  }
+  const size_t most = std::max(left, right);
+  return most == 0 ? 1.0 : double(std::min(left, right)) / double(most);
 }
 
 Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera, const Pose3& T_base_cam)
@@ -113,7 +134,16 @@ Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera, co
       volume_((options.validate(), options.volume), camera.width(), camera.height(), camera.calibration().fx,
               camera.calibration().fy, camera.calibration().cx, camera.calibration().cy),
       objective_(camera_, &volume_),
-      scan_objectives_(camera_, options_.volume) {}
+      scan_objectives_(camera_, options_.volume) {
+  if (options_.one_sided_balance > 0 && forwardPixel(camera_, T_base_cam_, &forward_pixel_)) {
+    VolumeOptions deep = options_.volume;
+    deep.z_min_m = options_.one_sided_z_min_m;
+    const CameraCalibration& c = camera.calibration();
+    one_sided_volume_ = std::make_unique<ProjectiveVolume>(deep, camera.width(), camera.height(), c.fx, c.fy, c.cx, c.cy);
+    one_sided_objective_ = std::make_unique<VweObjective>(camera_, one_sided_volume_.get());
+    one_sided_scan_objectives_ = std::make_unique<VweObjectivePool>(camera_, deep);
+  }
+}
 
 void Frontend::reset() {
   buffer_.clear();
@@ -225,13 +255,15 @@ bool Frontend::gyroAt(int64_t t0, int64_t t1, double* yaw_rate) const {
 double Frontend::contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v) {
   const AckermannArcModel model(omega, v, t_ref_ns, T_base_cam_);
   ++stats_.evaluations;
-  return objective_.evaluate(events, model).variance;
+  VweObjective& objective = one_sided_window_ ? *one_sided_objective_ : objective_;
+  return objective.evaluate(events, model).variance;
 }
 
 std::vector<double> Frontend::contrasts(const EventVector& events, int64_t t_ref_ns, const std::vector<double>& omegas,
                                         double v) {
   std::vector<double> f(omegas.size());
-  scan_objectives_.run(int(omegas.size()), [&](int i, VweObjective& objective) {
+  VweObjectivePool& pool = one_sided_window_ ? *one_sided_scan_objectives_ : scan_objectives_;
+  pool.run(int(omegas.size()), [&](int i, VweObjective& objective) {
     const AckermannArcModel model(omegas[size_t(i)], v, t_ref_ns, T_base_cam_);
     f[size_t(i)] = objective.evaluate(events, model).variance;
   });
@@ -357,7 +389,10 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
     double half = lost_ ? options_.omega_max_rad_s : options_.scan_half_range_rad_s;
     double gyro = 0.0;
     if (options_.use_gyro_prior && gyroAt(t0, t1, &gyro)) center = gyro, half = options_.gyro_prior_half_range_rad_s;
+    one_sided_window_ = one_sided_objective_ && sideBalance(sub, forward_pixel_) < options_.one_sided_balance;
+    stats_.windows_one_sided += one_sided_window_;
     arc = estimateWindow(sub, t_ref, v, center, half);
+    one_sided_window_ = false;
     *scanned = true;
   }
   arc.t_ref_ns = t_ref;

@@ -214,6 +214,7 @@ nlohmann::json OfflinePipeline::report() const {
                              {"windows_low_events", by_status[3]},
                              {"windows_dropped", st.windows_dropped},
                              {"windows_split", st.windows_split},
+                             {"windows_one_sided", st.windows_one_sided},
                              {"objective_evaluations", st.evaluations}};
   if (backend_) {
     const BackendStats& b = backend_->stats();

@@ -129,3 +129,64 @@ TEST(Frontend, InvalidOptionsAreRefusedNamingTheField) {
   o.volume.num_planes = 1;
   EXPECT_THROW(o.validate(), std::invalid_argument);
 }
+
+TEST(Frontend, ForwardPixelIsTheFocusOfExpansionOnTheHorizon) {
+  CameraCalibration c;
+  c.width = 346;
+  c.height = 260;
+  c.fx = 255.2;
+  c.fy = 255.0;
+  c.cx = 172.6;
+  c.cy = 129.4;
+  const CameraModel cam(c);
+  Vec2 p;
+  // Level and looking forward: the principal point.
+  ASSERT_TRUE(forwardPixel(cam, mountToTBaseCam(Vec3(0.1, 0, 0.3), 0, 0, 0), &p));
+  EXPECT_NEAR(p.x(), c.cx, 1e-9);
+  EXPECT_NEAR(p.y(), c.cy, 1e-9);
+  // Pitched 5 deg down (the car mount): the horizon is fy tan(5 deg) above it.
+  const double pitch = 5.0 * kPi / 180;
+  ASSERT_TRUE(forwardPixel(cam, mountToTBaseCam(Vec3(1.5, 0, 1.4), 0, pitch, 0), &p));
+  EXPECT_NEAR(p.x(), c.cx, 1e-9);
+  EXPECT_NEAR(p.y(), c.cy - c.fy * std::tan(pitch), 1e-6);
+  // Yawed 20 deg to the left: straight ahead appears right of the centre.
+  ASSERT_TRUE(forwardPixel(cam, mountToTBaseCam(Vec3(0, 0, 0.3), 0, 0, 20.0 * kPi / 180), &p));
+  EXPECT_NEAR(p.x(), c.cx + c.fx * std::tan(20.0 * kPi / 180), 1e-6);
+  // Looking backwards: no forward pixel.
+  EXPECT_FALSE(forwardPixel(cam, mountToTBaseCam(Vec3(0, 0, 0.3), 0, 0, kPi), &p));
+}
+
+TEST(Frontend, SideBalanceCountsTheEventsAboveTheHorizonOnEachSide) {
+  const Vec2 fwd(100.0, 50.0);
+  EventVector ev;
+  auto add = [&](int n, uint16_t x, uint16_t y) {
+    for (int i = 0; i < n; ++i) ev.push_back({int64_t(ev.size()), x, y, 1});
+  };
+  EXPECT_EQ(sideBalance(ev, fwd), 1.0);  // nothing above the horizon
+  add(40, 10, 10);    // left, above
+  add(1000, 150, 200);  // right, below the horizon: not counted
+  EXPECT_EQ(sideBalance(ev, fwd), 0.0);  // all on the left
+  add(10, 150, 20);   // right, above
+  EXPECT_NEAR(sideBalance(ev, fwd), 10.0 / 40.0, 1e-12);
+  add(30, 199, 49);
+  EXPECT_NEAR(sideBalance(ev, fwd), 1.0, 1e-12);
+}
+
+TEST(Frontend, OneSidedOptionsAreValidated) {
+  FrontendOptions o;
+  o.one_sided_balance = 1.0;
+  try {
+    o.validate();
+    ADD_FAILURE() << "one_sided_balance 1 accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("one_sided_balance"), std::string::npos) << e.what();
+  }
+  o.one_sided_balance = 0.1;
+  o.one_sided_z_min_m = o.volume.z_max_m + 1;
+  try {
+    o.validate();
+    ADD_FAILURE() << "one_sided_z_min_m beyond z_max accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("one_sided_z_min_m"), std::string::npos) << e.what();
+  }
+}

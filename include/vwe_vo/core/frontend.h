@@ -58,6 +58,13 @@ struct FrontendOptions {
   bool use_gyro_prior = false;             // centre and narrow the scan on the gyro yaw rate
   double gyro_prior_half_range_rad_s = 0.1;  // scan half range around the gyro yaw rate [rad/s]
   double max_backwards_jump_s = 0.05;      // events older than newest - this trigger a reset [s]
+  // Structure on one side of the street only: under fast forward motion a yaw error is partly
+  // absorbed by refocusing that side's rays in near planes, which biases the peak (street_long
+  // before intersections: 5-12 deg/s). A window whose events above the horizon split more
+  // unevenly than this between the left and right of the focus of expansion (fewer / more) is
+  // estimated with planes from one_sided_z_min_m instead (0: off).
+  double one_sided_balance = 0.0;          // [1], in [0, 1)
+  double one_sided_z_min_m = 10.0;         // nearest plane of one-sided windows [m]
   uint64_t seed = 1;                       // subsampling seed
   void validate() const;                   // throws std::invalid_argument naming the field
 };
@@ -84,7 +91,16 @@ struct FrontendStats {
   size_t events_in = 0, events_outside = 0, events_out_of_order = 0;
   size_t windows = 0, windows_dropped = 0, windows_split = 0, resets = 0;
   size_t evaluations = 0;
+  size_t windows_one_sided = 0;  // estimated with planes from one_sided_z_min_m
 };
+
+/// Pixel (undistorted pinhole) where the direction straight ahead of base_link (its x axis)
+/// appears: the focus of expansion of straight driving, on the horizon. False if the camera
+/// does not look forward.
+bool forwardPixel(const CameraModel& camera, const Pose3& T_base_cam, Vec2* pixel);
+/// Events above the horizon row (y < pixel.y) on the side of pixel.x with fewer of them, divided
+/// by those on the other side: 1 balanced, 0 all on one side; 1 if none is above the horizon.
+double sideBalance(const EventVector& events, const Vec2& pixel);
 
 class Frontend {
  public:
@@ -144,6 +160,13 @@ class Frontend {
   ProjectiveVolume volume_;
   VweObjective objective_;             // one evaluation on all threads (the refinement)
   VweObjectivePool scan_objectives_;   // one evaluation per thread (the scans)
+  // The same with planes from one_sided_z_min_m (one_sided_balance > 0), and whether the window
+  // being estimated uses them.
+  std::unique_ptr<ProjectiveVolume> one_sided_volume_;
+  std::unique_ptr<VweObjective> one_sided_objective_;
+  std::unique_ptr<VweObjectivePool> one_sided_scan_objectives_;
+  Vec2 forward_pixel_ = Vec2::Zero();
+  bool one_sided_window_ = false;
   EventBuffer buffer_;
   int64_t next_window_start_ns_ = -1;
   struct RateSample {
