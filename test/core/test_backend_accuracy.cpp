@@ -61,27 +61,24 @@ PipelineRun run(const std::string& name, const std::string& config_file = "vwe_v
   return r;
 }
 
-}  // namespace
-
-TEST(BackendAccuracy, IndoorCircle) {
-  const PipelineRun r = run("indoor_circle");
+/// The issue #6 targets indoors: at least 20 % below the front-end, translation direction
+/// <= 0.3 deg/s, ATE <= 2 %, no NaN (indoor_long: through its 3 s standstill), tracked.
+void expectIndoorTargets(const PipelineRun& r, double max_rot_rmse_deg_s) {
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.8 * r.frontend.rpe.rot_rmse_deg_s);
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.3);
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, max_rot_rmse_deg_s);
   EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.3);
   EXPECT_LE(r.backend.ate_percent_of_path, 2.0);
   EXPECT_GE(r.backend.tracked_fraction, 0.95);
 }
 
-TEST(BackendAccuracy, IndoorLongWithStandstill) {
-  const PipelineRun r = run("indoor_long");
-  EXPECT_EQ(r.nonfinite_poses, 0u);  // through the 3 s standstill
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.8 * r.frontend.rpe.rot_rmse_deg_s);
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.4);
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.3);
-  EXPECT_LE(r.backend.ate_percent_of_path, 2.0);
-  EXPECT_GE(r.backend.tracked_fraction, 0.95);
-}
+}  // namespace
+
+// Measured: back-end 0.179 deg/s against the front-end's 0.275 (35 % lower).
+TEST(BackendAccuracy, IndoorCircle) { expectIndoorTargets(run("indoor_circle"), 0.3); }
+
+// Measured: 0.207 against 0.355 (42 % lower).
+TEST(BackendAccuracy, IndoorLongWithStandstill) { expectIndoorTargets(run("indoor_long"), 0.4); }
 
 TEST(BackendAccuracy, StreetLongWithTheCarConfig) {
   // A car at 5-8 m/s with 90-degree turns; config/car.yaml (its mount, one-sided windows with

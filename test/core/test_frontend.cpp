@@ -131,13 +131,8 @@ TEST(Frontend, InvalidOptionsAreRefusedNamingTheField) {
 }
 
 TEST(Frontend, ForwardPixelIsTheFocusOfExpansionOnTheHorizon) {
-  CameraCalibration c;
-  c.width = 346;
-  c.height = 260;
-  c.fx = 255.2;
-  c.fy = 255.0;
-  c.cx = 172.6;
-  c.cy = 129.4;
+  const CameraCalibration c =
+      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml");
   const CameraModel cam(c);
   Vec2 p;
   // Level and looking forward: the principal point.
