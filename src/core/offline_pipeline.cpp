@@ -42,19 +42,13 @@ void OfflinePipeline::runBackend(const EventVector& events, size_t first_new_arc
   if (!backend_) return;
   const auto t0 = Clock::now();
   backend_->addEvents(events);
+  const int64_t step = std::max<int64_t>(1, secToNs(1.0 / config_.backend.output_rate_hz));
   for (size_t i = first_new_arc; i < arcs_.size(); ++i) {
-    if (backend_->addArc(arcs_[i])) {
-      odometry_.reset();
-      next_odom_ns_ = -1;
-    }
+    if (backend_->addArc(arcs_[i])) odometry_.reset();
     // As backend_node does: the odometry of a new arc goes out before the refinement it triggers.
-    const int64_t step = std::max<int64_t>(1, secToNs(1.0 / config_.backend.output_rate_hz));
-    if (next_odom_ns_ < 0) next_odom_ns_ = backend_->oldestArcTime();
-    for (; next_odom_ns_ >= 0 && next_odom_ns_ <= backend_->newestArcTime(); next_odom_ns_ += step) {
-      Pose3 T;
-      if (odometry_.next(*backend_, next_odom_ns_, &T, nullptr, nullptr))
-        odometry_trajectory_.push_back({next_odom_ns_, T});
-    }
+    odometry_.advance(*backend_, step, [&](int64_t t_ns, const Pose3& T, double, double) {
+      odometry_trajectory_.push_back({t_ns, T});
+    });
     backend_->process();
   }
   if (at_end) backend_->finish();

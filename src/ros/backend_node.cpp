@@ -175,7 +175,6 @@ void BackendNode::workerLoop() {
 void BackendNode::resetBackend(const std::string& why) {
   backend_->reset();
   reported_resets_ = backend_->stats().resets;
-  next_odom_ns_ = -1;
   odometry_.reset();
   path_.poses.clear();
   ROS_WARN("backend_node: %s: back-end reset, the trajectory restarts at the identity (reset %zu)",
@@ -194,7 +193,6 @@ void BackendNode::handleEvents(const EventVector& events) {
   if (backend_->stats().resets > reported_resets_) {
     ++loops_;
     reported_resets_ = backend_->stats().resets;
-    next_odom_ns_ = -1;
     odometry_.reset();
     path_.poses.clear();
     ROS_WARN(
@@ -241,7 +239,6 @@ void BackendNode::handleArc(ArcEstimate arc) {
   if (backend_->addArc(arc)) {
     ++loops_;
     reported_resets_ = backend_->stats().resets;
-    next_odom_ns_ = -1;
     odometry_.reset();
     path_.poses.clear();
     ROS_WARN("backend_node: arc time jumped back to %.3f s (from %.3f s; a looped bag?): back-end "
@@ -288,15 +285,10 @@ void BackendNode::publishRefinement() {
 }
 
 void BackendNode::publishOdometry() {
-  if (!backend_->hasSpline() && newest_arc_ns_ < 0) return;
   const int64_t step = std::max<int64_t>(1, secToNs(1.0 / node_options_.odom_rate_hz));
-  if (next_odom_ns_ < 0) next_odom_ns_ = backend_->oldestArcTime();
-  for (; next_odom_ns_ >= 0 && next_odom_ns_ <= newest_arc_ns_; next_odom_ns_ += step) {
-    Pose3 T;
-    double v = 0.0, omega = 0.0;
-    if (!odometry_.next(*backend_, next_odom_ns_, &T, &v, &omega)) continue;
+  odometry_.advance(*backend_, step, [&](int64_t t_ns, const Pose3& T, double v, double omega) {
     nav_msgs::Odometry odom;
-    odom.header.stamp = toRosTime(next_odom_ns_);
+    odom.header.stamp = toRosTime(t_ns);
     odom.header.frame_id = frames::kOdom;
     odom.child_frame_id = frames::kBase;
     odom.pose.pose = poseToMsg(T);
@@ -310,7 +302,7 @@ void BackendNode::publishOdometry() {
       tf.transform = transformToMsg(T);
       tf_->sendTransform(tf);
     }
-  }
+  });
 }
 
 void BackendNode::logStatus() {

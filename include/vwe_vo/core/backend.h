@@ -279,9 +279,22 @@ class ContinuousOdometry {
   /// Pose of base_link at t_ns (later than the previous call's), with speed and yaw rate (may be
   /// null). False if the back-end has no pose at t_ns.
   bool next(const Backend& backend, int64_t t_ns, Pose3* T_odom_base, double* v, double* omega);
-  void reset() { has_previous_ = false; }
+  /// The stream backend_node publishes (and vwe_vo_offline's odom.tum): next() every step_ns
+  /// from the back-end's first arc up to its newest, each time once, as
+  /// emit(t_ns, T_odom_base, v, omega). Call it on every new arc, before the refinement.
+  template <typename Emit>
+  void advance(const Backend& backend, int64_t step_ns, Emit&& emit) {
+    if (next_ns_ < 0) next_ns_ = backend.oldestArcTime();
+    for (; next_ns_ >= 0 && next_ns_ <= backend.newestArcTime(); next_ns_ += step_ns) {
+      Pose3 T;
+      double v = 0.0, omega = 0.0;
+      if (next(backend, next_ns_, &T, &v, &omega)) emit(next_ns_, T, v, omega);
+    }
+  }
+  void reset() { has_previous_ = false, next_ns_ = -1; }
 
  private:
+  int64_t next_ns_ = -1;  // advance(): time of the next pose
   bool has_previous_ = false;
   int64_t t_previous_ns_ = 0;
   Pose3 T_previous_ = Pose3::Identity();

@@ -77,7 +77,6 @@ class OfflinePipeline {
   std::unique_ptr<Backend> backend_;
   ContinuousOdometry odometry_;
   Trajectory3 odometry_trajectory_;
-  int64_t next_odom_ns_ = -1;
   std::unique_ptr<FrameBaseline> baseline_;
   std::vector<ArcEstimate> arcs_;
   size_t events_ = 0;

@@ -99,7 +99,6 @@ class BackendNode {
   std::unique_ptr<Backend> backend_;
   int64_t newest_event_ns_ = -1;
   int64_t newest_arc_ns_ = -1;
-  int64_t next_odom_ns_ = -1;  // data time of the next /vwe/odom
   ContinuousOdometry odometry_;  // /vwe/odom and tf without jumps at refinements
   size_t arcs_lost_ = 0, arcs_stale_ = 0, gaps_ = 0, loops_ = 0, refinements_ = 0;
   size_t refinements_merged_ = 0;  // update intervals folded into a later refinement (behind)
