@@ -209,6 +209,7 @@ nlohmann::json OfflinePipeline::report() const {
                              {"windows_dropped", st.windows_dropped},
                              {"windows_split", st.windows_split},
                              {"windows_one_sided", st.windows_one_sided},
+                             {"windows_one_sided_near", st.windows_one_sided_near},
                              {"objective_evaluations", st.evaluations}};
   if (backend_) {
     const BackendStats& b = backend_->stats();

@@ -95,6 +95,7 @@ void loadOptions(const YAML::Node& node, const std::string& section, FrontendOpt
   s.get("rescan_confidence", &o->rescan_confidence);
   s.get("one_sided_balance", &o->one_sided_balance);
   s.get("one_sided_z_min_m", &o->one_sided_z_min_m);
+  s.get("one_sided_min_depth_m", &o->one_sided_min_depth_m);
   s.get("split_omega_change_rad_s", &o->split_omega_change_rad_s);
   s.get("use_gyro_prior", &o->use_gyro_prior);
   s.get("gyro_prior_half_range_rad_s", &o->gyro_prior_half_range_rad_s);

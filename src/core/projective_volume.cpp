@@ -71,6 +71,20 @@ inline void ProjectiveVolume::forEachVote(const VolumeRay& r, int l, Fn&& fn) co
   forEachPlaneVote(r, float(rho_[l]), [&](size_t idx, float ax, float ay) { fn(offset + idx, ax, ay); });
 }
 
+double ProjectiveVolume::peakDepth(const VolumeRay& ray) const {
+  if (grid_.empty()) return 0.0;
+  const size_t W = size_t(width_);
+  float best = 0.0f;
+  int best_l = -1;
+  for (int l = 0; l < options_.num_planes; ++l)
+    forEachVote(ray, l, [&](size_t idx, float ax, float ay) {
+      const float* g = grid_.data() + idx;
+      const float value = (1 - ax) * (1 - ay) * g[0] + ax * (1 - ay) * g[1] + (1 - ax) * ay * g[W] + ax * ay * g[W + 1];
+      if (value > best) best = value, best_l = l;
+    });
+  return best_l < 0 ? 0.0 : planeDepth(best_l);
+}
+
 size_t ProjectiveVolume::vote(const std::vector<VolumeRay>& rays) {
   if (grid_.empty()) grid_.assign(numVoxels(), 0.0f);
   const int L = options_.num_planes;

@@ -83,8 +83,12 @@ void FrontendNode::readParameters() {
   for (const std::string& w : config.warnings) ROS_WARN("frontend_node: %s", w.c_str());
   frontend_options_ = config.frontend;
   if (o.nominal_speed_mps >= 0) frontend_options_.nominal_speed_mps = o.nominal_speed_mps;
-  if (o.use_imu) frontend_options_.use_gyro_prior = true;  // the gyro's only use in the front-end
   frontend_options_.validate();
+  if (frontend_options_.use_gyro_prior && !o.use_imu)
+    ROS_WARN("frontend_node: the config's use_gyro_prior needs use_imu:=true (/dvs/imu); scanning without it");
+  if (frontend_options_.one_sided_balance > 0 && !o.use_imu)
+    ROS_INFO("frontend_node: one-sided windows predict their depth from the previous arc (use_imu:=true: from the gyro, "
+             "more reliable at the start of a turn)");
   T_base_cam_ = config.T_base_cam;
 
   if (!o.calibration_path.empty()) {

@@ -1,6 +1,8 @@
 // Front-end against known arcs: events of random 3D points seen along a constant Ackermann arc.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include "../common/synthetic_events.h"
 #include "vwe_vo/core/config.h"
 #include "vwe_vo/core/frontend.h"
@@ -184,4 +186,46 @@ TEST(Frontend, OneSidedOptionsAreValidated) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("one_sided_z_min_m"), std::string::npos) << e.what();
   }
+}
+
+TEST(Frontend, OneSidedDepthIsWhereTheRaysOfTheBusierUpperSideMeet) {
+  // Points seen from five camera positions (a sideways and forward baseline, as a window's
+  // rays): the rays of each point meet at its depth. Above the horizon (v0 < 100) the left
+  // holds facade points 20 m away, the right a nearer facade 7 m away; below it, a road 3 m away.
+  VolumeOptions vo;
+  vo.grid_scale = 1.0;
+  vo.num_planes = 30;
+  vo.z_min_m = 2.5;
+  vo.z_max_m = 60.0;
+  const double fx = 250, fy = 250, cx = 180, cy = 140;
+  ProjectiveVolume volume(vo, 346, 260, fx, fy, cx, cy);
+  const Vec2 horizon(cx, 100.0);
+  std::vector<VolumeRay> rays;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  auto addPoints = [&](int n, double u_lo, double u_hi, double v_lo, double v_hi, double z) {
+    for (int i = 0; i < n; ++i) {
+      const double u = u_lo + (u_hi - u_lo) * unit(rng), v = v_lo + (v_hi - v_lo) * unit(rng);
+      const Vec3 P((u - cx) / fx * z, (v - cy) / fy * z, z);
+      for (int k = -2; k <= 2; ++k) {
+        const Vec3 o(0.15 * k, 0.0, 0.5 * k);
+        VolumeRay r;
+        ASSERT_TRUE(makeVolumeRay(o, (P - o).normalized(), fx, fy, cx, cy, &r));
+        rays.push_back(r);
+      }
+    }
+  };
+  const double spacing = volume.planeInverseDepth(0) - volume.planeInverseDepth(1);
+  EXPECT_EQ(oneSidedDepth(volume, rays, horizon), 0.0);  // no rays
+  addPoints(300, 20, 150, 20, 90, 20.0);    // left, above the horizon
+  addPoints(100, 220, 330, 20, 90, 7.0);    // right, above
+  addPoints(600, 20, 330, 150, 250, 3.0);   // below the horizon: not counted
+  EXPECT_EQ(volume.peakDepth(rays.front()), 0.0);  // nothing voted yet
+  volume.vote(rays);
+  EXPECT_NEAR(1.0 / oneSidedDepth(volume, rays, horizon), 1.0 / 20.0, spacing);
+  volume.clear(rays);
+  // More on the right: the right's depth.
+  addPoints(400, 220, 330, 20, 90, 7.0);
+  volume.vote(rays);
+  EXPECT_NEAR(1.0 / oneSidedDepth(volume, rays, horizon), 1.0 / 7.0, spacing);
 }

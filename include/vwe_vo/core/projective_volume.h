@@ -73,6 +73,10 @@ class ProjectiveVolume {
   /// cover them anyway) and returns the variance the votes gave the grid.
   double clear(const std::vector<VolumeRay>& rays);
 
+  /// After vote(): the depth of the plane where the ray's bilinear footprint holds the most
+  /// votes, i.e. where the rays around it meet (0 if it meets no plane). Costs one read per plane.
+  double peakDepth(const VolumeRay& ray) const;
+
   /// Voxel value after vote() (for tests, EMVS argmax, images).
   float at(int x, int y, int l) const { return grid_[(size_t(l) * height_ + y) * width_ + x]; }
   const std::vector<float>& data() const { return grid_; }
