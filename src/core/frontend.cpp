@@ -104,46 +104,7 @@ void FrontendOptions::validate() const {
   if (!(rescan_confidence >= 0 && rescan_confidence < 1)) fail("rescan_confidence must be in [0, 1)");
   if (!(gyro_prior_half_range_rad_s > 0)) fail("gyro_prior_half_range_rad_s must be positive");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
-  if (!(one_sided_balance >= 0 && one_sided_balance < 1)) fail("one_sided_balance must be in [0, 1)");
-  if (one_sided_balance > 0 && !(one_sided_z_min_m > 0 && one_sided_z_min_m < volume.z_max_m))
-    fail("one_sided_z_min_m must be in (0, volume.z_max_m)");
-  if (!(one_sided_min_depth_m > 0)) fail("one_sided_min_depth_m must be positive");
-}
-
-bool forwardPixel(const CameraModel& camera, const Pose3& T_base_cam, Vec2* pixel) {
-  const Vec3 d = T_base_cam.linear().transpose() * Vec3::UnitX();  // in the camera frame
-  if (!(d.z() > 1e-3)) return false;
-  const CameraCalibration& c = camera.calibration();
-  *pixel = Vec2(c.fx * d.x() / d.z() + c.cx, c.fy * d.y() / d.z() + c.cy);
-  return true;
-}
-
-double sideBalance(const EventVector& events, const Vec2& pixel) {
-  size_t left = 0, right = 0;
-  for (const PixelEvent& e : events) {
-    if (e.y >= pixel.y()) continue;
-    if (e.x < pixel.x()) ++left; else ++right;
-  }
-  const size_t most = std::max(left, right);
-  return most == 0 ? 1.0 : double(std::min(left, right)) / double(most);
-}
-
-double oneSidedDepth(const ProjectiveVolume& volume, const std::vector<VolumeRay>& rays, const Vec2& pixel) {
-  size_t left = 0, right = 0;
-  for (const VolumeRay& r : rays)
-    if (r.v0 < pixel.y()) ++(r.u0 < pixel.x() ? left : right);
-  const bool use_left = left >= right;
-  std::vector<double> depths;
-  depths.reserve(std::max(left, right));
-  for (const VolumeRay& r : rays) {
-    if (!(r.v0 < pixel.y()) || (r.u0 < pixel.x()) != use_left) continue;
-    const double z = volume.peakDepth(r);
-    if (z > 0) depths.push_back(z);
-  }
-  if (depths.empty()) return 0.0;
-  const auto mid = depths.begin() + depths.size() / 2;
-  std::nth_element(depths.begin(), mid, depths.end());
-  return *mid;
+  one_sided.validate(volume, "FrontendOptions");
 }
 
 Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera, const Pose3& T_base_cam)
@@ -153,32 +114,15 @@ Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera, co
       volume_((options.validate(), options.volume), camera.width(), camera.height(), camera.calibration().fx,
               camera.calibration().fy, camera.calibration().cx, camera.calibration().cy),
       objective_(camera_, &volume_),
-      scan_objectives_(camera_, options_.volume) {
-  if (options_.one_sided_balance > 0 && forwardPixel(camera_, T_base_cam_, &forward_pixel_)) {
-    VolumeOptions deep = options_.volume;
-    deep.z_min_m = options_.one_sided_z_min_m;
+      scan_objectives_(camera_, options_.volume),
+      one_sided_(options_.one_sided, camera_, T_base_cam_) {
+  if (one_sided_.enabled()) {
+    const VolumeOptions deeper = one_sided_.deeperPlanes(options_.volume);
     const CameraCalibration& c = camera.calibration();
-    one_sided_volume_ = std::make_unique<ProjectiveVolume>(deep, camera.width(), camera.height(), c.fx, c.fy, c.cx, c.cy);
+    one_sided_volume_ = std::make_unique<ProjectiveVolume>(deeper, camera.width(), camera.height(), c.fx, c.fy, c.cx, c.cy);
     one_sided_objective_ = std::make_unique<VweObjective>(camera_, one_sided_volume_.get());
-    one_sided_scan_objectives_ = std::make_unique<VweObjectivePool>(camera_, deep);
-    const Vec3 d = T_base_cam_.linear().transpose() * Vec3::UnitX();
-    forward_grid_pixel_ = Vec2(volume_.fx() * d.x() / d.z() + volume_.cx(), volume_.fy() * d.y() / d.z() + volume_.cy());
+    one_sided_scan_objectives_ = std::make_unique<VweObjectivePool>(camera_, deeper);
   }
-}
-
-bool Frontend::deepEnough(const EventVector& events, int64_t t0, int64_t t1, int64_t t_ref_ns, double v) {
-  // The depth is measured at the predicted yaw rate: the gyro's where /dvs/imu gives one, else
-  // the previous arc's. Facades that need the deep planes (street_long: 19-22 m away) then
-  // measure 11.4-15 m, those that do not (6.5-9 m) 8-10.6 m. The previous arc is a weaker
-  // prediction at the start of a turn: stale by 8-15 deg/s, it smears the facade to 8.6-10 m.
-  double predicted = lost_ ? 0.0 : last_omega_;
-  gyroAt(t0, t1, &predicted);
-  const AckermannArcModel model(predicted, v, t_ref_ns, T_base_cam_);
-  objective_.voteOnly(events, model);
-  ++stats_.evaluations;
-  const double depth = oneSidedDepth(volume_, objective_.lastRays(), forward_grid_pixel_);
-  volume_.clear(objective_.lastRays());
-  return depth >= options_.one_sided_min_depth_m;
 }
 
 void Frontend::reset() {
@@ -426,8 +370,14 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
     double gyro = 0.0;
     if (options_.use_gyro_prior && gyroAt(t0, t1, &gyro)) center = gyro, half = options_.gyro_prior_half_range_rad_s;
     one_sided_window_ = false;
-    if (one_sided_objective_ && sideBalance(sub, forward_pixel_) < options_.one_sided_balance) {
-      one_sided_window_ = deepEnough(sub, t0, t1, t_ref, v);
+    if (one_sided_.oneSided(sub)) {
+      // The prediction: the gyro's yaw rate where /dvs/imu gives one, else the previous arc's,
+      // which is stale by 8-15 deg/s at the start of a turn and smears the facade to 8.6-10 m
+      // (street_long, where the gyro's separates 11.4-15 m from 7-10.6 m).
+      double predicted = lost_ ? 0.0 : last_omega_;
+      gyroAt(t0, t1, &predicted);
+      ++stats_.evaluations;
+      one_sided_window_ = one_sided_.deepEnough(objective_, sub, AckermannArcModel(predicted, v, t_ref, T_base_cam_));
       stats_.windows_one_sided += one_sided_window_;
       stats_.windows_one_sided_near += !one_sided_window_;
     }

@@ -93,9 +93,9 @@ void loadOptions(const YAML::Node& node, const std::string& section, FrontendOpt
   s.get("min_events", &o->min_events);
   s.get("min_confidence", &o->min_confidence);
   s.get("rescan_confidence", &o->rescan_confidence);
-  s.get("one_sided_balance", &o->one_sided_balance);
-  s.get("one_sided_z_min_m", &o->one_sided_z_min_m);
-  s.get("one_sided_min_depth_m", &o->one_sided_min_depth_m);
+  s.get("one_sided_balance", &o->one_sided.balance);
+  s.get("one_sided_z_min_m", &o->one_sided.z_min_m);
+  s.get("one_sided_min_depth_m", &o->one_sided.min_depth_m);
   s.get("split_omega_change_rad_s", &o->split_omega_change_rad_s);
   s.get("use_gyro_prior", &o->use_gyro_prior);
   s.get("gyro_prior_half_range_rad_s", &o->gyro_prior_half_range_rad_s);

@@ -86,7 +86,7 @@ void FrontendNode::readParameters() {
   frontend_options_.validate();
   if (frontend_options_.use_gyro_prior && !o.use_imu)
     ROS_WARN("frontend_node: the config's use_gyro_prior needs use_imu:=true (/dvs/imu); scanning without it");
-  if (frontend_options_.one_sided_balance > 0 && !o.use_imu)
+  if (frontend_options_.one_sided.balance > 0 && !o.use_imu)
     ROS_INFO("frontend_node: one-sided windows predict their depth from the previous arc (use_imu:=true: from the gyro, "
              "more reliable at the start of a turn)");
   T_base_cam_ = config.T_base_cam;

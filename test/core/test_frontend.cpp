@@ -171,21 +171,33 @@ TEST(Frontend, SideBalanceCountsTheEventsAboveTheHorizonOnEachSide) {
 
 TEST(Frontend, OneSidedOptionsAreValidated) {
   FrontendOptions o;
-  o.one_sided_balance = 1.0;
+  o.one_sided.balance = 1.0;
   try {
     o.validate();
     ADD_FAILURE() << "one_sided_balance 1 accepted";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("one_sided_balance"), std::string::npos) << e.what();
   }
-  o.one_sided_balance = 0.1;
-  o.one_sided_z_min_m = o.volume.z_max_m + 1;
+  o.one_sided.balance = 0.1;
+  o.one_sided.z_min_m = o.volume.z_max_m + 1;
   try {
     o.validate();
     ADD_FAILURE() << "one_sided_z_min_m beyond z_max accepted";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("one_sided_z_min_m"), std::string::npos) << e.what();
   }
+  o.one_sided.z_min_m = 0.5 * o.volume.z_min_m;  // not deeper than the normal planes
+  EXPECT_THROW(o.validate(), std::invalid_argument);
+  o.one_sided.z_min_m = 10.0;
+  o.one_sided.min_depth_m = 0.0;
+  try {
+    o.validate();
+    ADD_FAILURE() << "one_sided_min_depth_m 0 accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("one_sided_min_depth_m"), std::string::npos) << e.what();
+  }
+  o.one_sided.min_depth_m = 11.0;
+  EXPECT_NO_THROW(o.validate());
 }
 
 TEST(Frontend, OneSidedDepthIsWhereTheRaysOfTheBusierUpperSideMeet) {

@@ -12,6 +12,7 @@
 #include "vwe_vo/core/ackermann_arc.h"
 #include "vwe_vo/core/camera.h"
 #include "vwe_vo/core/events.h"
+#include "vwe_vo/core/one_sided.h"
 #include "vwe_vo/core/projective_volume.h"
 #include "vwe_vo/core/trajectory_io.h"
 #include "vwe_vo/core/vwe_objective.h"
@@ -58,20 +59,10 @@ struct FrontendOptions {
   bool use_gyro_prior = false;             // centre and narrow the scan on the gyro yaw rate
   double gyro_prior_half_range_rad_s = 0.1;  // scan half range around the gyro yaw rate [rad/s]
   double max_backwards_jump_s = 0.05;      // events older than newest - this trigger a reset [s]
-  // Structure on one side of the street only: under fast forward motion a yaw error is partly
-  // absorbed by refocusing that side's rays in near planes, which biases the peak (street_long
-  // before intersections: 5-12 deg/s). A window whose events above the horizon split more
-  // unevenly than this between the left and right of the focus of expansion (fewer / more) is
-  // estimated with planes from one_sided_z_min_m instead (0: off).
-  double one_sided_balance = 0.0;          // [1], in [0, 1)
-  double one_sided_z_min_m = 10.0;         // nearest plane of one-sided windows [m]
-  // ... but only where that side's structure is deep enough for those planes: a facade nearer
-  // than the planes cannot focus at the true yaw rate either (street_long's last turn: a facade
-  // 6-9 m away, 2-9 deg/s off with planes from 10 m). Its depth is the median depth where the
-  // rays of the side's events above the horizon meet, with the normal planes at the predicted
-  // yaw rate (the gyro's if /dvs/imu is given, else the previous arc's). The VWE measures depth
-  // short (street_long: facades 19-22 m away measure 11.4-15 m, 6.5-9 m measure 8-10.6 m).
-  double one_sided_min_depth_m = 11.0;     // [m], > 0
+  // Windows with structure on one side of the street only (one_sided.h; YAML one_sided_balance,
+  // one_sided_z_min_m, one_sided_min_depth_m): the facade's depth is measured at the predicted
+  // yaw rate, the gyro's if /dvs/imu is given, else the previous arc's.
+  OneSidedOptions one_sided;
   uint64_t seed = 1;                       // subsampling seed
   void validate() const;                   // throws std::invalid_argument naming the field
 };
@@ -98,20 +89,9 @@ struct FrontendStats {
   size_t events_in = 0, events_outside = 0, events_out_of_order = 0;
   size_t windows = 0, windows_dropped = 0, windows_split = 0, resets = 0;
   size_t evaluations = 0;
-  size_t windows_one_sided = 0;  // estimated with planes from one_sided_z_min_m
-  size_t windows_one_sided_near = 0;  // one-sided, but the structure nearer than one_sided_min_depth_m
+  size_t windows_one_sided = 0;       // estimated with the deeper planes (one_sided.z_min_m)
+  size_t windows_one_sided_near = 0;  // one-sided, but the structure nearer than one_sided.min_depth_m
 };
-
-/// Pixel (undistorted pinhole) where the direction straight ahead of base_link (its x axis)
-/// appears: the focus of expansion of straight driving, on the horizon. False if the camera
-/// does not look forward.
-bool forwardPixel(const CameraModel& camera, const Pose3& T_base_cam, Vec2* pixel);
-/// Median, over the rays whose direction (u0, v0) lies above pixel.y() on the side of pixel.x()
-/// with more of them, of volume.peakDepth() (the volume holding the rays' votes); 0 if none.
-double oneSidedDepth(const ProjectiveVolume& volume, const std::vector<VolumeRay>& rays, const Vec2& pixel);
-/// Events above the horizon row (y < pixel.y) on the side of pixel.x with fewer of them, divided
-/// by those on the other side: 1 balanced, 0 all on one side; 1 if none is above the horizon.
-double sideBalance(const EventVector& events, const Vec2& pixel);
 
 class Frontend {
  public:
@@ -171,15 +151,12 @@ class Frontend {
   ProjectiveVolume volume_;
   VweObjective objective_;             // one evaluation on all threads (the refinement)
   VweObjectivePool scan_objectives_;   // one evaluation per thread (the scans)
-  // The same with planes from one_sided_z_min_m (one_sided_balance > 0), and whether the window
-  // being estimated uses them.
+  // The same with the deeper planes of one-sided windows (one_sided.balance > 0), and whether the
+  // window being estimated uses them.
+  OneSidedRule one_sided_;
+  std::unique_ptr<VweObjectivePool> one_sided_scan_objectives_;
   std::unique_ptr<ProjectiveVolume> one_sided_volume_;
   std::unique_ptr<VweObjective> one_sided_objective_;
-  std::unique_ptr<VweObjectivePool> one_sided_scan_objectives_;
-  Vec2 forward_pixel_ = Vec2::Zero();       // sensor pixels
-  Vec2 forward_grid_pixel_ = Vec2::Zero();  // the same in volume_'s grid
-  /// Whether a window whose events are one-sided has its structure deep enough for the deep planes.
-  bool deepEnough(const EventVector& events, int64_t t0, int64_t t1, int64_t t_ref_ns, double v);
   bool one_sided_window_ = false;
   EventBuffer buffer_;
   int64_t next_window_start_ns_ = -1;

@@ -52,6 +52,7 @@ class VweObjective {
   /// call volume->clear(lastRays()) afterwards.
   VweEvaluation voteOnly(const EventVector& events, const TrajectoryModel& model);
   const std::vector<VolumeRay>& lastRays() const { return rays_; }
+  ProjectiveVolume& volume() const { return *volume_; }
 
  private:
   VweEvaluation buildRays(const EventVector& events, const TrajectoryModel& model, bool with_jacobian);
