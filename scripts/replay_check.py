@@ -38,7 +38,8 @@ PATTERNS = {
     "frontend_node": {
         "windows": r"frontend_node: (\d+) windows \(",
         "windows_split": r"\((\d+) split in two\)",
-        "windows_one_sided": r"\((\d+) one-sided\)",
+        "windows_one_sided": r"\((\d+) one-sided,",
+        "windows_one_sided_near": r"one-sided, (\d+) one-sided but near\)",
         "arcs": r"-> (\d+) arcs",
         "arcs_ok": r"\((\d+) ok,",
         "windows_lost": r"(\d+) lost,",

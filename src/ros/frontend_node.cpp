@@ -361,11 +361,11 @@ void FrontendNode::logStatus() {
   const double wall_s = std::max(1e-6, (now - last_status_).toSec());
   const FrontendStats& s = frontend_->stats();
   ROS_INFO(
-      "frontend_node: %zu windows (%zu split in two) (%zu one-sided) -> %zu arcs (%zu ok, %zu standstill, %zu lost, %zu "
+      "frontend_node: %zu windows (%zu split in two) (%zu one-sided, %zu one-sided but near) -> %zu arcs (%zu ok, %zu standstill, %zu lost, %zu "
       "low events), %zu windows skipped behind; "
       "%.0f events/s in, %zu outside the sensor, %zu late; packets %zu (%zu lost before the node, %zu "
       "empty, %zu wrong size, %zu queue full); %zu resets; real-time factor %.3f",
-      s.windows, s.windows_split, s.windows_one_sided, windows_ok_ + windows_standstill_ + windows_lost_ + windows_low_, windows_ok_,
+      s.windows, s.windows_split, s.windows_one_sided, s.windows_one_sided_near, windows_ok_ + windows_standstill_ + windows_lost_ + windows_low_, windows_ok_,
       windows_standstill_, windows_lost_, windows_low_, s.windows_dropped,
       double(s.events_in - last_status_events_) / wall_s,
       s.events_outside + events_outside_msg_.load(), s.events_out_of_order, packets_in_.load(),

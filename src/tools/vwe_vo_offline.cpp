@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <map>
 #include <string>
@@ -33,7 +34,9 @@ const char* kUsage =
     "usage: vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out OUTDIR\n"
     "                      [--use-odom] [--frontend-only] [--events-topic T] [--odom-topic T] [--imu-topic T]\n"
     "                      [--no-map] [--depth-png] [--baseline] [--baseline-only] [--image-topic T] [--quiet]\n"
-    "  Runs the front-end and the back-end over recorded events at full speed. Writes\n"
+    "                      [--start S]\n"
+    "  Runs the front-end and the back-end over recorded events at full speed (a bag from S seconds\n"
+    "  after its start with --start, as a live system that starts late). Writes\n"
     "  OUTDIR/frontend.tum, OUTDIR/arcs.csv, OUTDIR/report.json and (unless --frontend-only)\n"
     "  OUTDIR/backend.tum, OUTDIR/odom.tum (the continuous odometry backend_node would publish\n"
     "  live) and OUTDIR/spline.json. Then (unless --no-map) a second pass over the\n"
@@ -137,7 +140,8 @@ int main(int argc, char** argv) {
     } else if (a == "--quiet") {
       quiet = true;
     } else if ((a == "--bag" || a == "--ecd" || a == "--config" || a == "--nominal-speed" || a == "--out" ||
-                a == "--events-topic" || a == "--odom-topic" || a == "--imu-topic" || a == "--image-topic") &&
+                a == "--events-topic" || a == "--odom-topic" || a == "--imu-topic" || a == "--image-topic" ||
+                a == "--start") &&
                i + 1 < argc) {
       args[a] = argv[++i];
     } else {
@@ -148,6 +152,16 @@ int main(int argc, char** argv) {
   if (args.count("--bag") == args.count("--ecd") || !args.count("--out")) {
     std::cerr << "vwe_vo_offline: give exactly one of --bag or --ecd, and --out\n" << kUsage;
     return 2;
+  }
+  double start_s = 0.0;
+  if (args.count("--start")) {
+    char* end = nullptr;
+    start_s = std::strtod(args["--start"].c_str(), &end);
+    if (end == args["--start"].c_str() || *end != '\0' || !(start_s >= 0) || !args.count("--bag")) {
+      std::cerr << "vwe_vo_offline: --start needs a number of seconds >= 0 and a --bag (got '" << args["--start"]
+                << "')\n";
+      return 2;
+    }
   }
   try {
     vwe_vo::PipelineConfig cfg = vwe_vo::loadPipelineConfig(
@@ -201,7 +215,8 @@ int main(int argc, char** argv) {
       std::vector<std::string> topics = {odom_topic, imu_topic};
       if (!baseline_only) topics.push_back(events_topic);
       if (baseline) topics.push_back(image_topic);
-      rosbag::View view(bag, rosbag::TopicQuery(topics));
+      const ros::Time begin = rosbag::View(bag, rosbag::TopicQuery(topics)).getBeginTime() + ros::Duration(start_s);
+      rosbag::View view(bag, rosbag::TopicQuery(topics), begin);
       const double total = (view.getEndTime() - view.getBeginTime()).toSec();
       size_t packets = 0;
       vwe_vo::EventVector events;
@@ -236,7 +251,7 @@ int main(int argc, char** argv) {
           }
         }
       }
-      input = {{"bag", args["--bag"]}, {"event_packets", packets}, {"events_dropped_in_conversion", conv.dropped}};
+      input = {{"bag", args["--bag"]}, {"start_s", start_s}, {"event_packets", packets}, {"events_dropped_in_conversion", conv.dropped}};
       if (baseline && frames == 0) throw std::runtime_error("--baseline: no " + image_topic + " frames in " + args["--bag"]);
     }
     if (baseline) input["frames"] = frames;
@@ -254,7 +269,9 @@ int main(int argc, char** argv) {
         const std::string events_topic =
             args.count("--events-topic") ? args["--events-topic"] : "/dvs/events";
         rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
-        rosbag::View view(bag, rosbag::TopicQuery({events_topic}));
+        const ros::Time begin =
+            rosbag::View(bag, rosbag::TopicQuery({events_topic})).getBeginTime() + ros::Duration(start_s);
+        rosbag::View view(bag, rosbag::TopicQuery({events_topic}), begin);
         vwe_vo::EventConversionStats conv;
         for (const rosbag::MessageInstance& m : view)
           if (const auto msg = m.instantiate<vwe_vo::EventArray>()) {

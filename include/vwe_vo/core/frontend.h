@@ -158,6 +158,9 @@ class Frontend {
   std::unique_ptr<ProjectiveVolume> one_sided_volume_;
   std::unique_ptr<VweObjective> one_sided_objective_;
   bool one_sided_window_ = false;
+  // The range a flat or edge-bound scan is repeated over (the full range, but for the halves of a
+  // split window).
+  std::pair<double, double> rescan_range_{-1e9, 1e9};
   EventBuffer buffer_;
   int64_t next_window_start_ns_ = -1;
   struct RateSample {
