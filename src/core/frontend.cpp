@@ -417,7 +417,7 @@ std::vector<ArcEstimate> Frontend::process() {
       // The halves of a ramp from the previous rate through the whole window's: they rescan
       // only that far (plus the scan's half range), not the full range, where a half's spurious
       // peak can win (street_long started 0.25 s later: halves 68 and 26 deg/s off on straight
-      // driving; phases 0-0.25 s, back-end 0.47-2.01 -> 0.47-0.82 deg/s). indoor_long's 60 deg/s
+      // driving; starts 0-0.25 s late, back-end 0.47-2.01 -> 0.48-1.18 deg/s). indoor_long's 60 deg/s
       // turns need the rescan within that range (without any: 3.8 deg/s).
       const double far_end = 2.0 * arc.omega - previous_omega;
       rescan_range_ = {std::min(previous_omega, far_end) - options_.scan_half_range_rad_s,
