@@ -13,12 +13,19 @@ void OneSidedOptions::validate(const VolumeOptions& normal, const std::string& o
   if (!(min_depth_m > 0 && min_depth_m < 1e4)) fail("min_depth_m must be in (0, 1e4) m");
 }
 
-bool forwardPixel(const CameraModel& camera, const Pose3& T_base_cam, Vec2* pixel) {
+namespace {
+/// Straight ahead of base_link in a pinhole (fx, fy, cx, cy); false if the camera does not look forward.
+bool forwardPixelIn(double fx, double fy, double cx, double cy, const Pose3& T_base_cam, Vec2* pixel) {
   const Vec3 d = T_base_cam.linear().transpose() * Vec3::UnitX();  // in the camera frame
   if (!(d.z() > 1e-3)) return false;
-  const CameraCalibration& c = camera.calibration();
-  *pixel = Vec2(c.fx * d.x() / d.z() + c.cx, c.fy * d.y() / d.z() + c.cy);
+  *pixel = Vec2(fx * d.x() / d.z() + cx, fy * d.y() / d.z() + cy);
   return true;
+}
+}  // namespace
+
+bool forwardPixel(const CameraModel& camera, const Pose3& T_base_cam, Vec2* pixel) {
+  const CameraCalibration& c = camera.calibration();
+  return forwardPixelIn(c.fx, c.fy, c.cx, c.cy, T_base_cam, pixel);
 }
 
 double sideBalance(const EventVector& events, const Vec2& pixel) {
@@ -66,9 +73,10 @@ bool OneSidedRule::oneSided(const EventVector& events) const {
 
 bool OneSidedRule::deepEnough(VweObjective& normal, const EventVector& events, const TrajectoryModel& model) const {
   ProjectiveVolume& volume = normal.volume();
-  // Straight ahead in the volume's grid (the rays' (u0, v0) are directions in its pinhole).
-  const Vec3 d = T_base_cam_.linear().transpose() * Vec3::UnitX();
-  const Vec2 forward(volume.fx() * d.x() / d.z() + volume.cx(), volume.fy() * d.y() / d.z() + volume.cy());
+  // Straight ahead in the volume's grid (the rays' (u0, v0) are directions in its pinhole);
+  // enabled() means the camera looks forward.
+  Vec2 forward;
+  forwardPixelIn(volume.fx(), volume.fy(), volume.cx(), volume.cy(), T_base_cam_, &forward);
   normal.voteOnly(events, model);
   const double depth = oneSidedDepth(volume, normal.lastRays(), forward);
   volume.clear(normal.lastRays());
