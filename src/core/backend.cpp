@@ -571,6 +571,8 @@ void Backend::refine(int64_t t_new_ns) {
   const double f1 = objective.evaluate(params, nullptr);
   stats_.solver_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   stats_.evaluations += objective.evaluations();
+  stats_.solver_iterations += summary.iterations.empty() ? 0 : summary.iterations.size() - 1;
+  if (summary.termination_type == ceres::NO_CONVERGENCE) ++stats_.max_iteration_stops;
   // Accept what lowered the total cost (VWE and speed prior); anything else is reverted.
   if (!(summary.final_cost <= summary.initial_cost) || !std::isfinite(f1) || !params.allFinite()) {
     ++stats_.rejected;
@@ -578,6 +580,8 @@ void Backend::refine(int64_t t_new_ns) {
     stats_.last_gain = 1.0;
   } else {
     stats_.last_gain = f1 / f0;
+    stats_.gain_sum += f1 / f0 - 1.0;
+    ++stats_.accepted;
   }
 }
 

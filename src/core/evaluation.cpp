@@ -480,6 +480,14 @@ std::string formatTable(const EvaluationResult& r) {
   return os.str();
 }
 
+bool meanYawRate(const Trajectory3& gt, int64_t t0_ns, int64_t t1_ns, double* rate_rad_s) {
+  Pose3 a, b;
+  if (t1_ns <= t0_ns || !interpolateTrajectory(gt, t0_ns, &a) || !interpolateTrajectory(gt, t1_ns, &b))
+    return false;
+  *rate_rad_s = yawOf(a.linear().transpose() * b.linear()) / dtSec(t1_ns, t0_ns);
+  return true;
+}
+
 WindowYawRateResult evaluateWindowYawRates(const Trajectory3& gt, const std::vector<WindowYawRate>& windows) {
   WindowYawRateResult r;
   for (const WindowYawRate& w : windows) {
@@ -487,13 +495,11 @@ WindowYawRateResult evaluateWindowYawRates(const Trajectory3& gt, const std::vec
       ++r.standstill_windows;
       continue;
     }
-    Pose3 a, b;
-    if (w.t_end_ns <= w.t_start_ns || !interpolateTrajectory(gt, w.t_start_ns, &a) ||
-        !interpolateTrajectory(gt, w.t_end_ns, &b)) {
+    double truth = 0.0;
+    if (!meanYawRate(gt, w.t_start_ns, w.t_end_ns, &truth)) {
       ++r.outside;
       continue;
     }
-    const double truth = yawOf(a.linear().transpose() * b.linear()) / dtSec(w.t_end_ns, w.t_start_ns);
     r.err_deg_s.push_back((w.omega_rad_s - truth) * kDegPerRad);
   }
   r.windows = r.err_deg_s.size();

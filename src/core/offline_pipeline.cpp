@@ -3,12 +3,15 @@
 #include <sys/stat.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <limits>
 #include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
+
+#include "vwe_vo/core/evaluation.h"
 
 namespace vwe_vo {
 namespace {
@@ -44,7 +47,17 @@ void OfflinePipeline::runBackend(const EventVector& events, size_t first_new_arc
   backend_->addEvents(events);
   const int64_t step = std::max<int64_t>(1, secToNs(1.0 / config_.backend.output_rate_hz));
   for (size_t i = first_new_arc; i < arcs_.size(); ++i) {
-    if (backend_->addArc(arcs_[i])) odometry_.reset();
+    ArcEstimate arc = arcs_[i];
+    if (!arc_truth_.empty()) {
+      double truth = 0.0;
+      if (meanYawRate(arc_truth_, arc.t_start_ns, arc.t_end_ns, &truth)) {
+        arc.omega = truth + arc_truth_blend_ * (arc.omega - truth);
+        ++arcs_from_truth_;
+      } else {
+        ++arcs_outside_truth_;
+      }
+    }
+    if (backend_->addArc(arc)) odometry_.reset();
     // As backend_node does: the odometry of a new arc goes out before the refinement it triggers.
     odometry_.advance(*backend_, step, [&](int64_t t_ns, const Pose3& T, double, double) {
       odometry_trajectory_.push_back({t_ns, T});
@@ -53,6 +66,14 @@ void OfflinePipeline::runBackend(const EventVector& events, size_t first_new_arc
   }
   if (at_end) backend_->finish();
   backend_s_ += secondsSince(t0);
+}
+
+void OfflinePipeline::setBackendArcsFromTruth(Trajectory3 truth, double blend) {
+  if (truth.empty()) throw std::invalid_argument("setBackendArcsFromTruth: the truth has no pose");
+  if (!std::isfinite(blend)) throw std::invalid_argument("setBackendArcsFromTruth: blend must be finite");
+  if (t_first_ >= 0) throw std::logic_error("setBackendArcsFromTruth: call it before the first events");
+  arc_truth_ = std::move(truth);
+  arc_truth_blend_ = blend;
 }
 
 void OfflinePipeline::addEvents(const EventVector& events) {
@@ -222,11 +243,19 @@ nlohmann::json OfflinePipeline::report() const {
         {"volumes_skipped", b.volumes_skipped},
         {"objective_evaluations", b.evaluations},
         {"refinements_rejected", b.rejected},
+        {"solver_iterations", b.solver_iterations},
+        {"refinements_at_max_iterations", b.max_iteration_stops},
+        {"refinements_accepted", b.accepted},
+        {"mean_objective_gain", b.accepted > 0 ? b.gain_sum / double(b.accepted) : 0.0},
         {"arcs_held", b.arcs_held},
         {"resets", b.resets},
         {"events_outside_sensor", b.events_outside},
         {"events_out_of_order", b.events_out_of_order},
         {"control_points", backend_->hasSpline() ? backend_->spline().numControlPoints() : 0}};
+    if (!arc_truth_.empty())
+      j["stages"]["backend"]["arcs_from_truth"] = {{"blend", arc_truth_blend_},
+                                                   {"arcs", arcs_from_truth_},
+                                                   {"arcs_outside_truth", arcs_outside_truth_}};
   }
   if (mapper_) {
     j["stages"]["mapping"] = {

@@ -4,24 +4,20 @@
 #include <nav_msgs/Odometry.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 #include <sys/stat.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <iostream>
 #include <map>
-#include <string>
-
-#include <nav_msgs/Odometry.h>
-#include <sensor_msgs/Image.h>
-#include <sensor_msgs/Imu.h>
-
-#include <fstream>
-#include <sstream>
-
 #include <opencv2/imgcodecs.hpp>
+#include <sstream>
+#include <string>
 
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/core/config.h"
@@ -34,7 +30,7 @@ const char* kUsage =
     "usage: vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out OUTDIR\n"
     "                      [--use-odom] [--frontend-only] [--events-topic T] [--odom-topic T] [--imu-topic T]\n"
     "                      [--no-map] [--depth-png] [--baseline] [--baseline-only] [--image-topic T] [--quiet]\n"
-    "                      [--start S]\n"
+    "                      [--start S] [--truth-arcs GT.tum [--truth-arcs-blend A]]\n"
     "  Runs the front-end and the back-end over recorded events at full speed (a bag from S seconds\n"
     "  after its start with --start, as a live system that starts late). Writes\n"
     "  OUTDIR/frontend.tum, OUTDIR/arcs.csv, OUTDIR/report.json and (unless --frontend-only)\n"
@@ -46,7 +42,11 @@ const char* kUsage =
     "  extrinsics.txt (T_base_cam, overrides the config).\n"
     "  --baseline: also runs the frame-based baseline (KLT + 1-point Ackermann RANSAC) on the APS\n"
     "  frames (ECD: images.txt + images/, bag: /dvs/image_raw) and writes OUTDIR/baseline.tum and a\n"
-    "  \"baseline\" stage in report.json; --baseline-only skips the event pipeline.\n";
+    "  \"baseline\" stage in report.json; --baseline-only skips the event pipeline.\n"
+    "  --truth-arcs (research): the back-end gets the ground truth's yaw rate over each arc's window,\n"
+    "  moved towards the front-end's by A (default 0): truth + A * (front-end - truth). A = 0 shows\n"
+    "  the back-end objective's own bias, A = 0.5 how much of a front-end error it corrects.\n"
+    "  The front-end's outputs are unchanged; report.json says how many arcs were replaced.\n";
 
 bool fileExists(const std::string& p) {
   struct stat st;
@@ -141,7 +141,7 @@ int main(int argc, char** argv) {
       quiet = true;
     } else if ((a == "--bag" || a == "--ecd" || a == "--config" || a == "--nominal-speed" || a == "--out" ||
                 a == "--events-topic" || a == "--odom-topic" || a == "--imu-topic" || a == "--image-topic" ||
-                a == "--start") &&
+                a == "--start" || a == "--truth-arcs" || a == "--truth-arcs-blend") &&
                i + 1 < argc) {
       args[a] = argv[++i];
     } else {
@@ -162,6 +162,21 @@ int main(int argc, char** argv) {
                 << "')\n";
       return 2;
     }
+  }
+  double truth_blend = 0.0;
+  if (args.count("--truth-arcs-blend")) {
+    char* end = nullptr;
+    truth_blend = std::strtod(args["--truth-arcs-blend"].c_str(), &end);
+    if (end == args["--truth-arcs-blend"].c_str() || *end != '\0' || !std::isfinite(truth_blend) ||
+        !args.count("--truth-arcs") || frontend_only) {
+      std::cerr << "vwe_vo_offline: --truth-arcs-blend needs a finite number, --truth-arcs and the back-end (got '"
+                << args["--truth-arcs-blend"] << "')\n";
+      return 2;
+    }
+  }
+  if (args.count("--truth-arcs") && frontend_only) {
+    std::cerr << "vwe_vo_offline: --truth-arcs feeds the back-end: it cannot go with --frontend-only\n";
+    return 2;
   }
   try {
     vwe_vo::PipelineConfig cfg = vwe_vo::loadPipelineConfig(
@@ -191,6 +206,9 @@ int main(int argc, char** argv) {
       input = {{"ecd", dir}};
     }
     vwe_vo::OfflinePipeline pipeline(cfg);
+    if (args.count("--truth-arcs")) {
+      pipeline.setBackendArcsFromTruth(vwe_vo::readTum(args["--truth-arcs"]), truth_blend);
+    }
     if (baseline) pipeline.enableBaseline();
     size_t frames = 0;
     if (args.count("--ecd") && baseline) frames = feedEcdFrames(args["--ecd"], &pipeline);

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 
@@ -604,6 +605,74 @@ TEST(Backend, OfflinePipelineWritesTheBackendOutputs) {
   EXPECT_EQ(fe_only.backend(), nullptr);
   EXPECT_FALSE(fe_only.report()["stages"].contains("backend"));
   EXPECT_EQ(std::system(("rm -rf " + dir).c_str()), 0);
+}
+
+// vwe_vo_offline --truth-arcs: the back-end is fed the truth's yaw rate over each arc's window,
+// blended towards the front-end's. Blend 1 is the front-end exactly; blend 0 starts the back-end
+// on the truth (here with no refinement, so what comes out is the initial fit itself).
+TEST(Backend, TruthArcsBlendBetweenTheTruthAndTheFrontEnd) {
+  Scene sc;
+  PipelineConfig cfg = loadPipelineConfig(std::string(VWE_VO_SOURCE_DIR) + "/config/vwe_vo.yaml");
+  cfg.camera = testCalibration();
+  cfg.T_base_cam = testExtrinsics();
+  cfg.frontend.nominal_speed_mps = kSpeed;
+  cfg.frontend.standstill_event_rate_hz = 1000;
+  cfg.frontend.volume = testOptions().volume;
+  cfg.backend = testOptions();
+  cfg.backend.max_iterations = 0;  // the back-end's output is its initial fit
+  Trajectory3 truth;
+  for (double u = 0.0; u <= kDuration + 1e-9; u += 0.01)
+    truth.push_back({kEpoch + secToNs(u), sc.truth->T_odom_base(u)});
+  struct Run {
+    Trajectory3 backend;
+    nlohmann::json report;
+    size_t windows = 0;
+  };
+  auto run = [&](double blend, bool with_truth) {
+    OfflinePipeline pipeline(cfg);
+    if (with_truth) pipeline.setBackendArcsFromTruth(truth, blend);
+    pipeline.addEvents(sc.events);
+    pipeline.finish();
+    return Run{pipeline.backendTrajectory(), pipeline.report(), pipeline.arcs().size()};
+  };
+  // RMSE over 0.5 s pairs of the heading change of est against ref (the truth if null) [deg].
+  auto rotationError = [&](const Trajectory3& est, const Trajectory3* ref) {
+    double sum = 0.0;
+    int n = 0;
+    for (double u = 0.2; u + 0.5 <= kDuration - 0.2; u += 0.1, ++n) {
+      auto change = [&](const Trajectory3& tr) {
+        Pose3 a, b;
+        EXPECT_TRUE(interpolateTrajectory(tr, kEpoch + secToNs(u), &a) &&
+                    interpolateTrajectory(tr, kEpoch + secToNs(u + 0.5), &b));
+        return yawOf(a.linear().transpose() * b.linear());
+      };
+      const double d_ref = ref ? change(*ref) : sc.truth->heading(u + 0.5) - sc.truth->heading(u);
+      sum += std::pow(wrapAngle(change(est) - d_ref), 2);
+    }
+    return std::sqrt(sum / n) * 180 / kPi;
+  };
+  const Run fe = run(0.0, false), same = run(1.0, true), exact = run(0.0, true), twice = run(2.0, true);
+  ASSERT_EQ(fe.backend.size(), same.backend.size());
+  for (size_t i = 0; i < fe.backend.size(); ++i)
+    ASSERT_TRUE(fe.backend[i].T.isApprox(same.backend[i].T, 1e-12)) << "pose " << i;
+  const double e_fe = rotationError(fe.backend, nullptr), e_exact = rotationError(exact.backend, nullptr);
+  // The front-end's deviation from the truth, once and twice over.
+  const double d1 = rotationError(fe.backend, &exact.backend), d2 = rotationError(twice.backend, &exact.backend);
+  std::printf("[backend] initial fit vs truth: from the front-end's arcs %.3f deg, from the truth's %.3f deg; "
+              "deviation from the truth-fed fit at blend 1 / 2: %.3f / %.3f deg\n", e_fe, e_exact, d1, d2);
+  // The truth turns 5 deg per 0.5 s; what is left is the fit of the arcs' ramps, not the rates.
+  EXPECT_LT(e_exact, 0.1);
+  ASSERT_GT(d1, 0.005);
+  EXPECT_NEAR(d2 / d1, 2.0, 0.2);
+  const nlohmann::json& tr = exact.report["stages"]["backend"]["arcs_from_truth"];
+  EXPECT_EQ(tr["arcs"].get<size_t>() + tr["arcs_outside_truth"].get<size_t>(), exact.windows);
+  EXPECT_GE(tr["arcs"].get<size_t>(), exact.windows - 1);
+  EXPECT_FALSE(fe.report["stages"]["backend"].contains("arcs_from_truth"));
+
+  OfflinePipeline started(cfg);
+  EXPECT_THROW(started.setBackendArcsFromTruth({}, 0.0), std::invalid_argument);
+  started.addEvents(EventVector(sc.events.begin(), sc.events.begin() + 100));
+  EXPECT_THROW(started.setBackendArcsFromTruth(truth, 0.0), std::logic_error);
 }
 
 TEST(Backend, YamlLoaderFillsBackendOptionsAndNamesBadKeys) {

@@ -59,6 +59,10 @@ struct BackendStats {
   size_t evaluations = 0;      // objective + gradient evaluations
   size_t rejected = 0;         // refinements whose result was worse than the start (reverted)
   size_t resets = 0;
+  size_t solver_iterations = 0;     // LBFGS iterations (summed over refinements)
+  size_t max_iteration_stops = 0;   // refinements that ended at max_iterations (not converged)
+  size_t accepted = 0;              // refinements whose result was kept
+  double gain_sum = 0.0;            // sum over accepted refinements of f_final / f_start - 1
   double solver_s = 0.0;   // wall time in the solver [s]
   double last_gain = 0.0;  // objective ratio final / initial of the last refinement
 };

@@ -36,6 +36,14 @@ class OfflinePipeline {
   /// Null unless enableBaseline() was called.
   const FrameBaseline* baseline() const { return baseline_.get(); }
 
+  /// Research (vwe_vo_offline --truth-arcs): the back-end gets, instead of each front-end arc's
+  /// yaw rate w, the truth's mean rate w_true over the arc's window moved towards w by `blend`:
+  /// w_true + blend * (w - w_true). Blend 0 starts the refinement at the truth (what is left then
+  /// is the back-end objective's own bias), blend 0.5 halfway (how much of a front-end error it
+  /// corrects). Arcs outside the truth keep w and are counted. The front-end's outputs (arcs.csv,
+  /// frontend.tum) are unchanged. Call before the first events.
+  void setBackendArcsFromTruth(Trajectory3 truth, double blend);
+
   const std::vector<ArcEstimate>& arcs() const { return arcs_; }
   /// Front-end dead reckoning (integrateArcs) of base_link in odom, every 10 ms.
   Trajectory3 frontendTrajectory() const;
@@ -79,6 +87,9 @@ class OfflinePipeline {
   Trajectory3 odometry_trajectory_;
   std::unique_ptr<FrameBaseline> baseline_;
   std::vector<ArcEstimate> arcs_;
+  Trajectory3 arc_truth_;  // setBackendArcsFromTruth()
+  double arc_truth_blend_ = 0.0;
+  size_t arcs_from_truth_ = 0, arcs_outside_truth_ = 0;
   size_t events_ = 0;
   int64_t t_first_ = -1, t_last_ = -1;
   double frontend_s_ = 0.0, backend_s_ = 0.0;
