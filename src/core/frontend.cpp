@@ -232,17 +232,21 @@ bool Frontend::gyroAt(int64_t t0, int64_t t1, double* yaw_rate) const {
   return true;
 }
 
-double Frontend::contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v) {
+double Frontend::contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v, bool deep_planes) {
+  if (deep_planes && !one_sided_objective_)
+    throw std::logic_error("Frontend: deep planes need one_sided.balance > 0");
   const AckermannArcModel model(omega, v, t_ref_ns, T_base_cam_);
   ++stats_.evaluations;
-  VweObjective& objective = one_sided_window_ ? *one_sided_objective_ : objective_;
+  VweObjective& objective = deep_planes ? *one_sided_objective_ : objective_;
   return objective.evaluate(events, model).variance;
 }
 
 std::vector<double> Frontend::contrasts(const EventVector& events, int64_t t_ref_ns, const std::vector<double>& omegas,
-                                        double v) {
+                                        double v, bool deep_planes) {
+  if (deep_planes && !one_sided_scan_objectives_)
+    throw std::logic_error("Frontend: deep planes need one_sided.balance > 0");
   std::vector<double> f(omegas.size());
-  VweObjectivePool& pool = one_sided_window_ ? *one_sided_scan_objectives_ : scan_objectives_;
+  VweObjectivePool& pool = deep_planes ? *one_sided_scan_objectives_ : scan_objectives_;
   pool.run(int(omegas.size()), [&](int i, VweObjective& objective) {
     const AckermannArcModel model(omegas[size_t(i)], v, t_ref_ns, T_base_cam_);
     f[size_t(i)] = objective.evaluate(events, model).variance;
@@ -252,7 +256,7 @@ std::vector<double> Frontend::contrasts(const EventVector& events, int64_t t_ref
 }
 
 ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns, double v, double center,
-                                     double half_range) {
+                                     double half_range, const WindowScan& setup) {
   ArcEstimate arc;
   arc.t_ref_ns = t_ref_ns;
   arc.v = v;
@@ -275,7 +279,7 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
       if (!covered(w)) ws.push_back(w);
     }
     // The points are independent: evaluated in parallel, one per thread.
-    const std::vector<double> fs = contrasts(events, t_ref_ns, ws, v);
+    const std::vector<double> fs = contrasts(events, t_ref_ns, ws, v, setup.deep_planes);
     for (size_t i = 0; i < ws.size(); ++i) f_of_w[ws[i]] = fs[i];
     arc.evaluations += int(ws.size());
     return std::make_pair(lo, hi);
@@ -290,7 +294,7 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   // between coarse points losing to a broad one).
   auto fullScan = [&] {
     const double coarse = std::max(step, options_.full_scan_step_rad_s);
-    scan(std::max(-wmax, rescan_range_.first), std::min(wmax, rescan_range_.second), coarse);
+    scan(std::max(-wmax, setup.rescan_lo_rad_s), std::min(wmax, setup.rescan_hi_rad_s), coarse);
     std::vector<std::pair<double, double>> maxima;  // (f, omega)
     for (auto it = f_of_w.begin(); it != f_of_w.end(); ++it) {
       const auto next = std::next(it);
@@ -336,7 +340,7 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   if (std::next(it) != f_of_w.end() && std::next(it)->first - best_w <= 1.01 * step)
     b = std::next(it)->first, fb = std::next(it)->second;
   double f_ref = best_f;
-  const double w_ref = brentMaximize([&](double w) { ++arc.evaluations; return contrast(events, t_ref_ns, w, v); },
+  const double w_ref = brentMaximize([&](double w) { ++arc.evaluations; return contrast(events, t_ref_ns, w, v, setup.deep_planes); },
                                      a, b, best_w, best_f, fa, fb, options_.refine_tolerance_rad_s, 30, &f_ref);
   if (f_ref >= best_f) best_w = w_ref, best_f = f_ref;
   arc.omega = best_w;
@@ -346,7 +350,8 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   return arc;
 }
 
-ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_t t1, bool* scanned) {
+ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_t t1, WindowScan setup,
+                                   bool* scanned) {
   ArcEstimate arc;
   const double duration = dtSec(t1, t0);
   bool odom_standstill = false;
@@ -369,7 +374,7 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
     double half = lost_ ? options_.omega_max_rad_s : options_.scan_half_range_rad_s;
     double gyro = 0.0;
     if (options_.use_gyro_prior && gyroAt(t0, t1, &gyro)) center = gyro, half = options_.gyro_prior_half_range_rad_s;
-    one_sided_window_ = false;
+    setup.deep_planes = false;
     if (one_sided_.oneSided(sub)) {
       // The prediction: the gyro's yaw rate where /dvs/imu gives one, else the previous arc's,
       // which is stale by 8-15 deg/s at the start of a turn and smears the facade to 8.6-10 m
@@ -377,12 +382,11 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
       double predicted = lost_ ? 0.0 : last_omega_;
       gyroAt(t0, t1, &predicted);
       ++stats_.evaluations;
-      one_sided_window_ = one_sided_.deepEnough(objective_, sub, AckermannArcModel(predicted, v, t_ref, T_base_cam_));
-      stats_.windows_one_sided += one_sided_window_;
-      stats_.windows_one_sided_near += !one_sided_window_;
+      setup.deep_planes = one_sided_.deepEnough(objective_, sub, AckermannArcModel(predicted, v, t_ref, T_base_cam_));
+      stats_.windows_one_sided += setup.deep_planes;
+      stats_.windows_one_sided_near += !setup.deep_planes;
     }
-    arc = estimateWindow(sub, t_ref, v, center, half);
-    one_sided_window_ = false;
+    arc = estimateWindow(sub, t_ref, v, center, half, setup);
     *scanned = true;
   }
   arc.t_ref_ns = t_ref;
@@ -401,7 +405,7 @@ std::vector<ArcEstimate> Frontend::process() {
     const double previous_omega = last_omega_;
     const bool was_lost = lost_;
     bool scanned = false;
-    ArcEstimate arc = estimateSpan(window, t0, t1, &scanned);
+    ArcEstimate arc = estimateSpan(window, t0, t1, WindowScan(), &scanned);
     std::vector<ArcEstimate> parts{arc};
     // The yaw rate changed within reach of this window: a constant arc would average a ramp
     // badly, so the window is estimated again as two halves (not with overlapping windows).
@@ -420,12 +424,12 @@ std::vector<ArcEstimate> Frontend::process() {
       // driving; starts 0-0.25 s late, back-end 0.47-2.01 -> 0.48-1.18 deg/s). indoor_long's 60 deg/s
       // turns need the rescan within that range (without any: 3.8 deg/s).
       const double far_end = 2.0 * arc.omega - previous_omega;
-      rescan_range_ = {std::min(previous_omega, far_end) - options_.scan_half_range_rad_s,
-                       std::max(previous_omega, far_end) + options_.scan_half_range_rad_s};
-      const ArcEstimate a = estimateSpan(first, t0, tm, &s1);
+      WindowScan halves;
+      halves.rescan_lo_rad_s = std::min(previous_omega, far_end) - options_.scan_half_range_rad_s;
+      halves.rescan_hi_rad_s = std::max(previous_omega, far_end) + options_.scan_half_range_rad_s;
+      const ArcEstimate a = estimateSpan(first, t0, tm, halves, &s1);
       if (a.status == ArcStatus::kOk) last_omega_ = a.omega;
-      const ArcEstimate b = estimateSpan(second, tm, t1, &s2);
-      rescan_range_ = {-options_.omega_max_rad_s, options_.omega_max_rad_s};
+      const ArcEstimate b = estimateSpan(second, tm, t1, halves, &s2);
       if (a.status == ArcStatus::kOk && b.status == ArcStatus::kOk) {
         parts = {a, b};
         ++stats_.windows_split;

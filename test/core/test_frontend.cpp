@@ -67,6 +67,23 @@ TEST(Frontend, CoarseToFineFullScanFindsATurnWithFewerEvaluations) {
   EXPECT_LT(a_coarse.evaluations, 0.6 * a_fine.evaluations)
       << a_coarse.evaluations << " vs " << a_fine.evaluations << " evaluations";
   EXPECT_EQ(size_t(a_coarse.evaluations), fe_coarse.stats().evaluations);
+
+  // A rescan bounded as for the halves of a split window (+-10 deg/s here) does not reach the turn:
+  // its coarse grid stays in the range, and only the refinement around its best point (by up to
+  // a coarse step and a few fine ones) goes beyond. The one-sided planes are refused when the
+  // options have none.
+  WindowScan bounded;
+  bounded.rescan_lo_rad_s = -10.0 / kDegPerRad;
+  bounded.rescan_hi_rad_s = 10.0 / kDegPerRad;
+  const ArcEstimate a_bounded =
+      fe_coarse.estimateWindow(events, secToNs(5.0), 0.4, 0.0, coarse.scan_half_range_rad_s, bounded);
+  EXPECT_LT(std::abs(a_bounded.omega) * kDegPerRad, 10.0 + (coarse.full_scan_step_rad_s + 3 * coarse.scan_step_rad_s) * kDegPerRad);
+  EXPECT_LT(a_bounded.evaluations, a_coarse.evaluations);
+  ASSERT_EQ(coarse.one_sided.balance, 0.0);
+  WindowScan deep;
+  deep.deep_planes = true;
+  EXPECT_THROW(fe_coarse.estimateWindow(events, secToNs(5.0), 0.4, 0.0, coarse.scan_half_range_rad_s, deep),
+               std::logic_error);
 }
 
 TEST(Frontend, LowEventRateIsStandstillNotARandomOmega) {

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -93,6 +94,15 @@ struct FrontendStats {
   size_t windows_one_sided_near = 0;  // one-sided, but the structure nearer than one_sided.min_depth_m
 };
 
+/// How the front-end scans a window beyond its centre and half range.
+struct WindowScan {
+  bool deep_planes = false;  // the one-sided window's planes (one_sided.z_min_m); needs one_sided.balance > 0
+  // The range a flat or edge-bound scan is repeated over (the full range, but for the halves
+  // of a split window), clipped to +-omega_max_rad_s.
+  double rescan_lo_rad_s = -std::numeric_limits<double>::infinity();
+  double rescan_hi_rad_s = std::numeric_limits<double>::infinity();
+};
+
 class Frontend {
  public:
   Frontend(const FrontendOptions& options, const CameraModel& camera, const Pose3& T_base_cam);
@@ -116,12 +126,13 @@ class Frontend {
 
   /// Estimates one window of events about t_ref (exposed for tests and the objective plots).
   ArcEstimate estimateWindow(const EventVector& window_events, int64_t t_ref_ns, double v, double omega_center,
-                             double half_range);
-  /// Variance of the VWE of `events` for an arc (omega, v) about t_ref.
-  double contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v);
+                             double half_range, const WindowScan& setup = WindowScan());
+  /// Variance of the VWE of `events` for an arc (omega, v) about t_ref (with the one-sided
+  /// window's planes if deep_planes).
+  double contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v, bool deep_planes = false);
   /// contrast() at every omega, one evaluation per thread (the same values as contrast()).
   std::vector<double> contrasts(const EventVector& events, int64_t t_ref_ns, const std::vector<double>& omegas,
-                                double v);
+                                double v, bool deep_planes = false);
 
   /// Replaces the speed used when no odometry is given (e.g. the back-end's refined speed);
   /// throws std::invalid_argument unless positive and finite.
@@ -136,9 +147,10 @@ class Frontend {
  private:
   bool nextWindow(EventVector* window, int64_t* t0, int64_t* t1) const;
   int64_t strideNs() const;
-  /// One span of events [t0, t1): standstill / low-events checks, subsampling, estimation.
-  /// *scanned tells whether the objective was optimised.
-  ArcEstimate estimateSpan(const EventVector& events, int64_t t0, int64_t t1, bool* scanned);
+  /// One span of events [t0, t1): standstill / low-events checks, subsampling, the one-sided
+  /// check (which sets setup.deep_planes), estimation. *scanned tells whether the objective was
+  /// optimised.
+  ArcEstimate estimateSpan(const EventVector& events, int64_t t0, int64_t t1, WindowScan setup, bool* scanned);
   /// Extends the dead reckoning over the part of time the span [t0, t1) stands for.
   void extendChain(int64_t t0, int64_t t1, double omega, double v);
   void moveToNextWindow(int64_t t0, int64_t t1);
@@ -151,16 +163,11 @@ class Frontend {
   ProjectiveVolume volume_;
   VweObjective objective_;             // one evaluation on all threads (the refinement)
   VweObjectivePool scan_objectives_;   // one evaluation per thread (the scans)
-  // The same with the deeper planes of one-sided windows (one_sided.balance > 0), and whether the
-  // window being estimated uses them.
+  // The same with the deeper planes of one-sided windows (one_sided.balance > 0).
   OneSidedRule one_sided_;
   std::unique_ptr<VweObjectivePool> one_sided_scan_objectives_;
   std::unique_ptr<ProjectiveVolume> one_sided_volume_;
   std::unique_ptr<VweObjective> one_sided_objective_;
-  bool one_sided_window_ = false;
-  // The range a flat or edge-bound scan is repeated over (the full range, but for the halves of a
-  // split window).
-  std::pair<double, double> rescan_range_{-1e9, 1e9};
   EventBuffer buffer_;
   int64_t next_window_start_ns_ = -1;
   struct RateSample {
