@@ -340,8 +340,11 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   if (std::next(it) != f_of_w.end() && std::next(it)->first - best_w <= 1.01 * step)
     b = std::next(it)->first, fb = std::next(it)->second;
   double f_ref = best_f;
-  const double w_ref = brentMaximize([&](double w) { ++arc.evaluations; return contrast(events, t_ref_ns, w, v, setup.deep_planes); },
-                                     a, b, best_w, best_f, fa, fb, options_.refine_tolerance_rad_s, 30, &f_ref);
+  auto f = [&](double w) {
+    ++arc.evaluations;
+    return contrast(events, t_ref_ns, w, v, setup.deep_planes);
+  };
+  const double w_ref = brentMaximize(f, a, b, best_w, best_f, fa, fb, options_.refine_tolerance_rad_s, 30, &f_ref);
   if (f_ref >= best_f) best_w = w_ref, best_f = f_ref;
   arc.omega = best_w;
   arc.contrast = best_f;

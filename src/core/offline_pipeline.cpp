@@ -69,6 +69,7 @@ void OfflinePipeline::runBackend(const EventVector& events, size_t first_new_arc
 }
 
 void OfflinePipeline::setBackendArcsFromTruth(Trajectory3 truth, double blend) {
+  if (!backend_) throw std::logic_error("setBackendArcsFromTruth: there is no back-end (frontend_only)");
   if (truth.empty()) throw std::invalid_argument("setBackendArcsFromTruth: the truth has no pose");
   if (!std::isfinite(blend)) throw std::invalid_argument("setBackendArcsFromTruth: blend must be finite");
   if (t_first_ >= 0) throw std::logic_error("setBackendArcsFromTruth: call it before the first events");

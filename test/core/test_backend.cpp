@@ -669,6 +669,10 @@ TEST(Backend, TruthArcsBlendBetweenTheTruthAndTheFrontEnd) {
   EXPECT_GE(tr["arcs"].get<size_t>(), exact.windows - 1);
   EXPECT_FALSE(fe.report["stages"]["backend"].contains("arcs_from_truth"));
 
+  PipelineConfig fe_only = cfg;
+  fe_only.frontend_only = true;
+  OfflinePipeline no_backend(fe_only);
+  EXPECT_THROW(no_backend.setBackendArcsFromTruth(truth, 0.0), std::logic_error);
   OfflinePipeline started(cfg);
   EXPECT_THROW(started.setBackendArcsFromTruth({}, 0.0), std::invalid_argument);
   started.addEvents(EventVector(sc.events.begin(), sc.events.begin() + 100));

@@ -77,7 +77,8 @@ TEST(Frontend, CoarseToFineFullScanFindsATurnWithFewerEvaluations) {
   bounded.rescan_hi_rad_s = 10.0 / kDegPerRad;
   const ArcEstimate a_bounded =
       fe_coarse.estimateWindow(events, secToNs(5.0), 0.4, 0.0, coarse.scan_half_range_rad_s, bounded);
-  EXPECT_LT(std::abs(a_bounded.omega) * kDegPerRad, 10.0 + (coarse.full_scan_step_rad_s + 3 * coarse.scan_step_rad_s) * kDegPerRad);
+  const double reach_deg_s = (coarse.full_scan_step_rad_s + 3 * coarse.scan_step_rad_s) * kDegPerRad;
+  EXPECT_LT(std::abs(a_bounded.omega) * kDegPerRad, 10.0 + reach_deg_s);
   EXPECT_LT(a_bounded.evaluations, a_coarse.evaluations);
   ASSERT_EQ(coarse.one_sided.balance, 0.0);
   WindowScan deep;

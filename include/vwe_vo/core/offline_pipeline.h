@@ -41,7 +41,7 @@ class OfflinePipeline {
   /// w_true + blend * (w - w_true). Blend 0 starts the refinement at the truth (what is left then
   /// is the back-end objective's own bias), blend 0.5 halfway (how much of a front-end error it
   /// corrects). Arcs outside the truth keep w and are counted. The front-end's outputs (arcs.csv,
-  /// frontend.tum) are unchanged. Call before the first events.
+  /// frontend.tum) are unchanged. Call before the first events; throws without a back-end.
   void setBackendArcsFromTruth(Trajectory3 truth, double blend);
 
   const std::vector<ArcEstimate>& arcs() const { return arcs_; }
