@@ -561,16 +561,23 @@ TEST(Backend, OptionsValidateNamesTheField) {
   EXPECT_THROW(Backend(o, CameraModel(testCalibration()), testExtrinsics()), std::invalid_argument);
 }
 
-TEST(Backend, OfflinePipelineWritesTheBackendOutputs) {
-  Scene sc;
+/// The turtlebot configuration for the Scene: its camera, mount, speed and volumes.
+static PipelineConfig scenePipelineConfig() {
   PipelineConfig cfg = loadPipelineConfig(std::string(VWE_VO_SOURCE_DIR) + "/config/vwe_vo.yaml");
-  EXPECT_EQ(cfg.backend.knot_spacing_s, 0.2);
   cfg.camera = testCalibration();
   cfg.T_base_cam = testExtrinsics();
   cfg.frontend.nominal_speed_mps = kSpeed;
   cfg.frontend.standstill_event_rate_hz = 1000;  // the scene has ~19k events/s
   cfg.frontend.volume = testOptions().volume;
   cfg.backend = testOptions();
+  return cfg;
+}
+
+TEST(Backend, OfflinePipelineWritesTheBackendOutputs) {
+  Scene sc;
+  PipelineConfig cfg = scenePipelineConfig();
+  const std::string yaml = std::string(VWE_VO_SOURCE_DIR) + "/config/vwe_vo.yaml";
+  EXPECT_EQ(loadPipelineConfig(yaml).backend.knot_spacing_s, 0.2);
   const std::string dir = "/tmp/vwe_vo_test_backend_" + std::to_string(::getpid());
   {
     OfflinePipeline pipeline(cfg);
@@ -612,13 +619,7 @@ TEST(Backend, OfflinePipelineWritesTheBackendOutputs) {
 // on the truth (here with no refinement, so what comes out is the initial fit itself).
 TEST(Backend, TruthArcsBlendBetweenTheTruthAndTheFrontEnd) {
   Scene sc;
-  PipelineConfig cfg = loadPipelineConfig(std::string(VWE_VO_SOURCE_DIR) + "/config/vwe_vo.yaml");
-  cfg.camera = testCalibration();
-  cfg.T_base_cam = testExtrinsics();
-  cfg.frontend.nominal_speed_mps = kSpeed;
-  cfg.frontend.standstill_event_rate_hz = 1000;
-  cfg.frontend.volume = testOptions().volume;
-  cfg.backend = testOptions();
+  PipelineConfig cfg = scenePipelineConfig();
   cfg.backend.max_iterations = 0;  // the back-end's output is its initial fit
   Trajectory3 truth;
   for (double u = 0.0; u <= kDuration + 1e-9; u += 0.01)
