@@ -587,14 +587,31 @@ bool BSplineCameraModel::covers(int64_t t_ns) const {
   return spline_->covers(t_ns) && spline_->covers(t_ref_ns_);
 }
 
+const BSplineCameraModel::Reference& BSplineCameraModel::reference(Reference* fresh) const {
+  if (ref_.version == spline_->version()) return ref_;
+  computeReference(fresh);
+  return *fresh;
+}
+
+namespace {
+// d T_Cr_Ct / d(psi, x, y) of T_Vr_Vt with heading R_V: dR_C = R_cb [z]x R_V R_bc d psi,
+// dp_C = R_cb ([z]x R_V p_bc d psi + (dx, dy, 0)).
+PlanarLocalJacobian planarLocalJacobian(const Mat3& R_V, const Pose3& T_base_cam) {
+  const Mat3 R_bc = T_base_cam.linear();
+  const Mat3 R_cb = R_bc.transpose();
+  const Mat3 zR_V = skew(Vec3::UnitZ()) * R_V;
+  PlanarLocalJacobian j;
+  j.dR_dpsi = R_cb * zR_V * R_bc;
+  j.dt_dpsi = R_cb * (zR_V * T_base_cam.translation());
+  j.dt_dx = R_cb.col(0);
+  j.dt_dy = R_cb.col(1);
+  return j;
+}
+}  // namespace
+
 Pose3 BSplineCameraModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
-  // The cached reference, or (the spline changed since) a fresh one on the stack.
   Reference fresh;
-  const Reference* ref = &ref_;
-  if (ref_.version != spline_->version()) {
-    computeReference(&fresh);
-    ref = &fresh;
-  }
+  const Reference* ref = &reference(&fresh);
   Vec2 p_t;
   PlanarPoseJacobian jac_t;
   const double psi_t = spline_->planarPose(spline_->toSplineTime(t_ns), &p_t, jac ? &jac_t : nullptr);
@@ -630,18 +647,57 @@ Pose3 BSplineCameraModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
       a[q] -= ref->jac.dpsi[s];
       b[q] -= R_rT * ref->jac.dp[s] + ref->jac.dpsi[s] * J_p_rel;
     }
-    // In the camera: dR_C = a R_cb [z]x R_V R_bc,  dp_C = a R_cb [z]x R_V p_bc + R_cb (b, 0).
-    const Mat3 R_bc = T_base_cam_.linear();
-    const Mat3 R_cb = R_bc.transpose();
-    const Mat3 zR_V = skew(Vec3::UnitZ()) * R_V;
-    const Mat3 M = R_cb * zR_V * R_bc;
-    const Vec3 m = R_cb * (zR_V * T_base_cam_.translation());
+    const PlanarLocalJacobian lj = planarLocalJacobian(R_V, T_base_cam_);
     jac->clear();
     for (int s = 0; s < n; ++s)
-      jac->add(index[s], a[s] * M,
-               a[s] * m + R_cb.col(0) * b[s].x() + R_cb.col(1) * b[s].y());
+      jac->add(index[s], a[s] * lj.dR_dpsi, a[s] * lj.dt_dpsi + lj.dt_dx * b[s].x() + lj.dt_dy * b[s].y());
   }
   return vehicleToCamera(T_Vr_Vt, T_base_cam_);
+}
+
+Pose3 BSplineCameraModel::T_Cr_CtPlanar(int64_t t_ns, PlanarLocalJacobian* jac) const {
+  Reference fresh;
+  const Reference& ref = reference(&fresh);
+  Vec2 p_t;
+  const double psi_t = spline_->planarPose(spline_->toSplineTime(t_ns), &p_t);
+  const Vec2 p_rel = Eigen::Rotation2Dd(-ref.psi) * (p_t - ref.position);
+  const Mat3 R_V = rotZ(psi_t - ref.psi);
+  if (jac) *jac = planarLocalJacobian(R_V, T_base_cam_);
+  return vehicleToCamera(makePose(R_V, Vec3(p_rel.x(), p_rel.y(), 0.0)), T_base_cam_);
+}
+
+void BSplineCameraModel::addPlanarGradient(const std::vector<int64_t>& t_ns, const std::vector<Vec3>& g,
+                                           Eigen::VectorXd* gradient) const {
+  if (t_ns.size() != g.size())
+    throw std::invalid_argument("BSplineCameraModel::addPlanarGradient: " + std::to_string(t_ns.size()) +
+                                " times but " + std::to_string(g.size()) + " derivatives");
+  if (gradient->size() != numParams())
+    throw std::invalid_argument("BSplineCameraModel::addPlanarGradient: gradient of size " +
+                                std::to_string(gradient->size()) + ", expected " + std::to_string(numParams()));
+  Reference fresh;
+  const Reference& ref = reference(&fresh);
+  // psi_rel = psi_t - psi_r and p_rel = R_r^T (p_t - p_r): the control points at t enter through
+  // (psi_t, p_t); the reference's through -psi_r, -R_r^T p_r and -psi_r J p_rel, summed over rays.
+  const Eigen::Rotation2Dd R_rT(-ref.psi), R_r(ref.psi);
+  double G_psi = 0.0, H = 0.0;
+  Vec2 G_p = Vec2::Zero();
+  PlanarPoseJacobian jac_t;
+  for (size_t i = 0; i < t_ns.size(); ++i) {
+    Vec2 p_t;
+    spline_->planarPose(spline_->toSplineTime(t_ns[i]), &p_t, &jac_t);
+    const Vec2 p_rel = R_rT * (p_t - ref.position);
+    const double g_psi = g[i].x();
+    const Vec2 g_p = g[i].tail<2>();
+    const Vec2 g_odom = R_r * g_p;  // g_p . (R_r^T dp) = (R_r g_p) . dp
+    for (int s = 0; s < jac_t.size; ++s)
+      (*gradient)[jac_t.index[s]] += g_psi * jac_t.dpsi[s] + g_odom.dot(jac_t.dp[s]);
+    G_psi += g_psi;
+    G_p += g_p;
+    H += g_p.dot(Vec2(-p_rel.y(), p_rel.x()));
+  }
+  const Vec2 G_odom = R_r * G_p;
+  for (int s = 0; s < ref.jac.size; ++s)
+    (*gradient)[ref.jac.index[s]] -= ref.jac.dpsi[s] * (G_psi + H) + G_odom.dot(ref.jac.dp[s]);
 }
 
 }  // namespace vwe_vo

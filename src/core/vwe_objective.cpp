@@ -45,22 +45,38 @@ EventVector subsampleEventsPerTimeSlice(const EventVector& events, int64_t t0_ns
 VweObjective::VweObjective(const CameraModel& camera, ProjectiveVolume* volume)
     : camera_(camera), volume_(volume), pool_(volume->options().num_threads) {}
 
+namespace {
+// d[u0, du, v0, dv] of the VolumeRay of (o, d) (ax, ay = d_x / d_z, d_y / d_z) for a pose
+// derivative that moves the direction by dd and the origin by dto.
+inline Eigen::Vector4d rayDerivative(const Vec3& o, const Vec3& d, double ax, double ay, const Vec3& dd,
+                                     const Vec3& dto, double fx, double fy) {
+  const double dax = (dd.x() - ax * dd.z()) / d.z();
+  const double day = (dd.y() - ay * dd.z()) / d.z();
+  const double dbx = dto.x() - dto.z() * ax - o.z() * dax;
+  const double dby = dto.y() - dto.z() * ay - o.z() * day;
+  return Eigen::Vector4d(fx * dax, fx * dbx, fy * day, fy * dby);
+}
+}  // namespace
+
 void VweObjective::buildChunk(const EventVector& events, size_t begin, size_t end, const TrajectoryModel& model,
                               bool with_jacobian, Chunk* out) const {
   out->rays.clear();
   out->jac_count.clear();
   out->jac_param.clear();
   out->jac_value.clear();
+  out->times.clear();
   out->skipped_time = out->skipped_behind = 0;
   const double fx = volume_->fx(), fy = volume_->fy(), cx = volume_->cx(), cy = volume_->cy();
+  const bool planar = with_jacobian && model.hasPlanarJacobian();
   PoseJacobian& pj = out->pose_jac;
+  PlanarLocalJacobian lj;
   for (size_t k = begin; k < end; ++k) {
     const PixelEvent& e = events[k];
     if (!model.covers(e.t_ns)) {
       ++out->skipped_time;
       continue;
     }
-    const Pose3 T = model.T_Cr_Ct(e.t_ns, with_jacobian ? &pj : nullptr);
+    const Pose3 T = planar ? model.T_Cr_CtPlanar(e.t_ns, &lj) : model.T_Cr_Ct(e.t_ns, with_jacobian ? &pj : nullptr);
     const Vec3 f = camera_.bearing(e.x, e.y).cast<double>();
     const Vec3 o = T.translation();
     const Vec3 d = T.linear() * f;
@@ -70,19 +86,20 @@ void VweObjective::buildChunk(const EventVector& events, size_t begin, size_t en
       continue;
     }
     out->rays.push_back(ray);
-    if (with_jacobian) {
-      out->jac_count.push_back(int(pj.param_index.size()));
-      const double ax = d.x() / d.z(), ay = d.y() / d.z();
-      for (size_t j = 0; j < pj.param_index.size(); ++j) {
-        const Vec3 dd = pj.dR[j] * f;
-        const Vec3& dto = pj.dt[j];
-        const double dax = (dd.x() - ax * dd.z()) / d.z();
-        const double day = (dd.y() - ay * dd.z()) / d.z();
-        const double dbx = dto.x() - dto.z() * ax - o.z() * dax;
-        const double dby = dto.y() - dto.z() * ay - o.z() * day;
-        out->jac_param.push_back(pj.param_index[j]);
-        out->jac_value.emplace_back(fx * dax, fx * dbx, fy * day, fy * dby);
-      }
+    if (!with_jacobian) continue;
+    const double ax = d.x() / d.z(), ay = d.y() / d.z();
+    if (planar) {
+      // Three derivatives per ray (psi, x, y); the model chains them to its parameters.
+      out->times.push_back(e.t_ns);
+      out->jac_value.push_back(rayDerivative(o, d, ax, ay, lj.dR_dpsi * f, lj.dt_dpsi, fx, fy));
+      out->jac_value.push_back(rayDerivative(o, d, ax, ay, Vec3::Zero(), lj.dt_dx, fx, fy));
+      out->jac_value.push_back(rayDerivative(o, d, ax, ay, Vec3::Zero(), lj.dt_dy, fx, fy));
+      continue;
+    }
+    out->jac_count.push_back(int(pj.param_index.size()));
+    for (size_t j = 0; j < pj.param_index.size(); ++j) {
+      out->jac_param.push_back(pj.param_index[j]);
+      out->jac_value.push_back(rayDerivative(o, d, ax, ay, pj.dR[j] * f, pj.dt[j], fx, fy));
     }
   }
 }
@@ -102,11 +119,13 @@ VweEvaluation VweObjective::buildRays(const EventVector& events, const Trajector
   jac_begin_.clear();
   jac_param_.clear();
   jac_value_.clear();
+  ray_times_.clear();
   for (size_t c = 0; c < num_chunks; ++c) {
     const Chunk& ch = chunks_[c];
     ev.skipped_time += ch.skipped_time;
     ev.skipped_behind += ch.skipped_behind;
     rays_.insert(rays_.end(), ch.rays.begin(), ch.rays.end());
+    ray_times_.insert(ray_times_.end(), ch.times.begin(), ch.times.end());
     if (with_jacobian) {
       int offset = int(jac_param_.size());
       for (int n : ch.jac_count) {
@@ -136,6 +155,16 @@ VweEvaluation VweObjective::evaluate(const EventVector& events, const Trajectory
   if (gradient) {
     gradient->setZero(model.numParams());
     const double scale = 2.0 / double(volume_->numVoxels());
+    if (model.hasPlanarJacobian()) {
+      planar_g_.resize(rays_.size());
+      for (size_t i = 0; i < rays_.size(); ++i) {
+        const Eigen::Vector4d& s = sensitivities_[i];
+        const Eigen::Vector4d* J = &jac_value_[3 * i];
+        planar_g_[i] = scale * Vec3(s.dot(J[0]), s.dot(J[1]), s.dot(J[2]));
+      }
+      model.addPlanarGradient(ray_times_, planar_g_, gradient);
+      return ev;
+    }
     for (size_t i = 0; i < rays_.size(); ++i) {
       const Eigen::Vector4d& s = sensitivities_[i];
       for (int j = jac_begin_[i]; j < jac_begin_[i + 1]; ++j) (*gradient)[jac_param_[j]] += scale * s.dot(jac_value_[j]);

@@ -234,6 +234,60 @@ TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
               sc.truth->controlPoints()[i] + 0.02 * Vec2(std::sin(3.0 * i), std::cos(5.0 * i)));
 }
 
+/// The spline model seen only through its full PoseJacobian (the objective's generic path).
+class FullJacobianView : public TrajectoryModel {
+ public:
+  explicit FullJacobianView(const TrajectoryModel& m) : m_(m) {}
+  int numParams() const override { return m_.numParams(); }
+  int64_t referenceTime() const override { return m_.referenceTime(); }
+  bool covers(int64_t t_ns) const override { return m_.covers(t_ns); }
+  Pose3 T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const override { return m_.T_Cr_Ct(t_ns, jac); }
+
+ private:
+  const TrajectoryModel& m_;
+};
+
+TEST(Backend, PlanarJacobianGivesTheGradientOfTheFullPoseJacobian) {
+  // The objective's factored gradient (dVar/d(psi, x, y) per ray, chained by the spline) against
+  // the one through every control point's dR, dt per event; also where poses are held (a
+  // standstill holding the reference, one the events run into) and with an unwrapped heading.
+  Scene sc(8000);
+  VolumeOptions vo = testOptions().volume;
+  vo.num_threads = 1;
+  VweObjectivePool vwe(sc.cam, vo);
+  auto spline = std::make_shared<BSpline>(*sc.truth);
+  for (int i = 0; i < spline->numControlPoints(); ++i)
+    spline->setControlPoint(i, spline->controlPoints()[i] + 0.01 * Vec2(std::sin(2.0 * i), std::cos(3.0 * i)));
+  for (const std::vector<BSpline::Interval>& still :
+       {std::vector<BSpline::Interval>{}, std::vector<BSpline::Interval>{{1.0, 1.4}, {2.0, 2.3}}}) {
+    spline->setStandstills(still);
+    for (double u_ref : {0.9, 1.2, 2.5}) {
+      const BSplineCameraModel model(spline, testExtrinsics(), kEpoch + secToNs(u_ref));
+      ASSERT_TRUE(model.hasPlanarJacobian());
+      Eigen::VectorXd g_planar, g_full;
+      double f_planar = 0, f_full = 0;
+      vwe.run(1, [&](int, VweObjective& obj) {
+        f_planar = obj.evaluate(sc.events, model, &g_planar).variance;
+        f_full = obj.evaluate(sc.events, FullJacobianView(model), &g_full).variance;
+      });
+      ASSERT_GT(f_planar, 0.0);
+      EXPECT_EQ(f_planar, f_full);
+      ASSERT_EQ(g_planar.size(), g_full.size());
+      ASSERT_GT(g_full.norm(), 0.0);
+      EXPECT_LT((g_planar - g_full).norm(), 1e-9 * g_full.norm())
+          << "u_ref " << u_ref << ", " << still.size() << " standstills";
+    }
+  }
+  // A model without a planar Jacobian says so when asked for one.
+  const BSplineCameraModel model(spline, testExtrinsics(), kEpoch + secToNs(1.6));
+  const FullJacobianView view(model);
+  EXPECT_FALSE(view.hasPlanarJacobian());
+  PlanarLocalJacobian lj;
+  EXPECT_THROW(view.T_Cr_CtPlanar(kEpoch, &lj), std::logic_error);
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(model.numParams());
+  EXPECT_THROW(model.addPlanarGradient({kEpoch}, {}, &g), std::invalid_argument);
+}
+
 /// Moves the free control points of `spline` by up to `move_m`, then checks the prior's analytic
 /// gradient against central differences (tolerance relative to the gradient's norm).
 static void expectGradientMatchesCentralDifferences(BSpline* spline, int first_free, const SplinePrior& prior,

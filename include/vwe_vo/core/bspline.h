@@ -190,6 +190,13 @@ class BSplineCameraModel : public TrajectoryModel {
   /// True if both t and t_ref are inside the spline's domain.
   bool covers(int64_t t_ns) const override;
   Pose3 T_Cr_Ct(int64_t t_ns, PoseJacobian* jac = nullptr) const override;
+  /// The factored Jacobian (what the back-end's objective uses): the planar coordinates of
+  /// T_Vr_Vt depend on the control points active at t and at t_ref; addPlanarGradient sums the
+  /// reference's share over all rays first and applies it once.
+  bool hasPlanarJacobian() const override { return true; }
+  Pose3 T_Cr_CtPlanar(int64_t t_ns, PlanarLocalJacobian* jac) const override;
+  void addPlanarGradient(const std::vector<int64_t>& t_ns, const std::vector<Vec3>& g,
+                         Eigen::VectorXd* gradient) const override;
 
   const BSpline& spline() const { return *spline_; }
   const Pose3& T_base_cam() const { return T_base_cam_; }
@@ -202,6 +209,8 @@ class BSplineCameraModel : public TrajectoryModel {
     PlanarPoseJacobian jac;
   };
   void computeReference(Reference* ref) const;
+  /// The cached reference, or (the spline changed since) *fresh computed anew.
+  const Reference& reference(Reference* fresh) const;
 
   std::shared_ptr<const BSpline> spline_;
   Pose3 T_base_cam_;

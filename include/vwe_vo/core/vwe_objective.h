@@ -63,6 +63,7 @@ class VweObjective {
     std::vector<int> jac_count;
     std::vector<int> jac_param;
     std::vector<Eigen::Vector4d> jac_value;
+    std::vector<int64_t> times;  // of the rays (planar Jacobian only)
     size_t skipped_time = 0, skipped_behind = 0;
     PoseJacobian pose_jac;
   };
@@ -74,10 +75,13 @@ class VweObjective {
   ThreadPool pool_;
   std::vector<Chunk> chunks_;
   std::vector<VolumeRay> rays_;
-  // Per ray: derivatives of [u0, du, v0, dv] w.r.t. the parameters that move it.
+  // Per ray: derivatives of [u0, du, v0, dv] w.r.t. the parameters that move it; for a model
+  // with a planar Jacobian, w.r.t. (psi, x, y) (three per ray), with the rays' times.
   std::vector<int> jac_begin_;
   std::vector<int> jac_param_;
   std::vector<Eigen::Vector4d> jac_value_;
+  std::vector<int64_t> ray_times_;
+  std::vector<Vec3> planar_g_;
   std::vector<Eigen::Vector4d> sensitivities_;
 };
 
