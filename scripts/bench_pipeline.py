@@ -8,9 +8,16 @@ is recorded next to them. With --seeds 1,2,3 each sequence is also run with thos
 seeds (front-end and back-end) and the spread of the accuracy is reported: one seed can move a
 rotation RMSE by a factor of several when a single window goes wrong.
 
-    scripts/bench_pipeline.py --ws .build/ws --out out/bench [--seeds 1,2,3] [SEQUENCE ...]
+The real-time factor of front-end + back-end is the event pipeline's wall time (the back-end on
+its own thread beside the front-end, as the nodes run live, bag decoding included) over the data's
+duration; each stage's busy time is reported as well. Machines shared with others vary by 10-30 %
+from run to run, so each sequence is timed --repeat times (default 3) and the minimum and median
+are reported (the outputs of the repeats are identical).
+
+    scripts/bench_pipeline.py --ws .build/ws --out out/bench [--repeat N] [--seeds 1,2,3] [SEQUENCE ...]
     (default sequences: indoor_long street_long)
 """
+import statistics
 import argparse
 import json
 import os
@@ -51,20 +58,27 @@ def seeded_config(config, seed):
     return f.name
 
 
-def run(bin_dir, seq, config, run_dir):
+def run(bin_dir, seq, config, run_dir, repeat=1):
     seq_dir = os.path.join(ROOT, "out", "sequences", seq)
     os.makedirs(run_dir, exist_ok=True)
-    subprocess.run([os.path.join(bin_dir, "vwe_vo_offline"), "--bag", os.path.join(seq_dir, seq + ".bag"),
-                    "--config", config, "--use-odom", "--no-map", "--quiet", "--out", run_dir],
-                   check=True, stdout=subprocess.DEVNULL)
-    rep = json.load(open(os.path.join(run_dir, "report.json")))
+    reports = []
+    for _ in range(max(1, repeat)):
+        subprocess.run([os.path.join(bin_dir, "vwe_vo_offline"), "--bag", os.path.join(seq_dir, seq + ".bag"),
+                        "--config", config, "--use-odom", "--no-map", "--quiet", "--out", run_dir],
+                       check=True, stdout=subprocess.DEVNULL)
+        reports.append(json.load(open(os.path.join(run_dir, "report.json"))))
+    rep = min(reports, key=lambda r: r["event_pipeline"]["real_time_factor"])
     fe, be = rep["stages"]["frontend"], rep["stages"]["backend"]
+    rtfs = [r["event_pipeline"]["real_time_factor"] for r in reports]
     gt = os.path.join(seq_dir, "groundtruth.txt")
     ev = os.path.join(bin_dir, "vwe_vo_eval")
     return {"duration_s": round(rep["duration_s"], 2), "events": rep["events"],
+            # Of the fastest run: the stages' busy times, and the wall time of both together.
             "real_time_factor": {"frontend": round(fe["real_time_factor"], 3),
                                  "backend": round(be["real_time_factor"], 3),
-                                 "frontend_plus_backend": round(fe["real_time_factor"] + be["real_time_factor"], 3)},
+                                 "frontend_plus_backend": round(min(rtfs), 3),
+                                 "frontend_plus_backend_median": round(statistics.median(rtfs), 3),
+                                 "runs": len(rtfs)},
             "objective_evaluations": {"frontend": fe["objective_evaluations"], "backend": be["objective_evaluations"]},
             "frontend": evaluate(ev, gt, os.path.join(run_dir, "frontend.tum")),
             "backend": evaluate(ev, gt, os.path.join(run_dir, "backend.tum")),
@@ -76,6 +90,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ws", default=os.path.join(ROOT, ".build", "ws"))
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "bench"))
+    ap.add_argument("--repeat", type=int, default=3, help="timed runs per sequence (min and median reported)")
     ap.add_argument("--seeds", default="", help="comma-separated subsampling seeds to run as well, e.g. 1,2,3")
     ap.add_argument("sequences", nargs="*", default=["indoor_long", "street_long"])
     a = ap.parse_args()
@@ -86,12 +101,14 @@ def main():
                           "load_average_at_start": [round(x, 2) for x in os.getloadavg()]},
               "sequences": {}}
     for seq in a.sequences:
-        r = run(bin_dir, seq, config_for(seq), os.path.join(a.out, "pipeline", seq))
+        r = run(bin_dir, seq, config_for(seq), os.path.join(a.out, "pipeline", seq), a.repeat)
         result["sequences"][seq] = r
-        print("[bench] pipeline %-12s RTF front %.3f + back %.3f = %.3f; rotation RMSE front %.3f back %.3f "
-              "odom %.3f deg/s" % (seq, r["real_time_factor"]["frontend"], r["real_time_factor"]["backend"],
-                                   r["real_time_factor"]["frontend_plus_backend"], r["frontend"]["rot_rmse_deg_s"],
-                                   r["backend"]["rot_rmse_deg_s"], r["odom"]["rot_rmse_deg_s"]), flush=True)
+        f = r["real_time_factor"]
+        print("[bench] pipeline %-12s RTF front + back %.3f (wall, best of %d; median %.3f), busy front %.3f back %.3f; "
+              "rotation RMSE front %.3f back %.3f odom %.3f deg/s"
+              % (seq, f["frontend_plus_backend"], f["runs"], f["frontend_plus_backend_median"], f["frontend"],
+                 f["backend"], r["frontend"]["rot_rmse_deg_s"], r["backend"]["rot_rmse_deg_s"],
+                 r["odom"]["rot_rmse_deg_s"]), flush=True)
         if a.seeds:
             by_seed = {}
             for seed in [int(x) for x in a.seeds.split(",")]:

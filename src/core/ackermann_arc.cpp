@@ -68,7 +68,13 @@ Pose3 arcT_Vr_Vt(double omega, double v, double dt_s, ArcJacobian* jac) {
 }
 
 Pose3 vehicleToCamera(const Pose3& T_Vr_Vt, const Pose3& T_base_cam) {
-  return T_base_cam.inverse(Eigen::Isometry) * T_Vr_Vt * T_base_cam;
+  // R_C = R_bc^T R_V R_bc,  p_C = R_bc^T (R_V p_bc + p_V - p_bc): once per event, so written out
+  // rather than as two 4x4 products and an inverse.
+  const Mat3& R_bc = T_base_cam.linear();
+  const Vec3& p_bc = T_base_cam.translation();
+  const Mat3 R_cb = R_bc.transpose();
+  return makePose(R_cb * T_Vr_Vt.linear() * R_bc,
+                  R_cb * (T_Vr_Vt.linear() * p_bc + T_Vr_Vt.translation() - p_bc));
 }
 
 void vehicleToCameraDerivative(const Pose3& T_base_cam, const Mat3& dR_V, const Vec3& dp_V,

@@ -33,21 +33,35 @@ void makeDirs(const std::string& dir) {
 }
 }  // namespace
 
+namespace {
+constexpr size_t kMaxBackendJobs = 256;  // event chunks waiting for the back-end (bounds memory)
+}  // namespace
+
 OfflinePipeline::OfflinePipeline(const PipelineConfig& config)
     : config_(config),
       camera_(config.camera),
       frontend_(config.frontend, camera_, config.T_base_cam) {
-  if (!config.frontend_only)
-    backend_ = std::make_unique<Backend>(config.backend, camera_, config.T_base_cam);
+  if (config.frontend_only) return;
+  backend_ = std::make_unique<Backend>(config.backend, camera_, config.T_base_cam);
+  if (config.backend_thread) backend_thread_ = std::thread(&OfflinePipeline::backendLoop, this);
 }
 
-void OfflinePipeline::runBackend(const EventVector& events, size_t first_new_arc, bool at_end) {
-  if (!backend_) return;
+OfflinePipeline::~OfflinePipeline() {
+  if (!backend_thread_.joinable()) return;
+  {
+    std::lock_guard<std::mutex> lock(backend_mutex_);
+    backend_stop_ = true;
+    backend_jobs_.clear();  // finish() waited for them; otherwise the run is abandoned
+  }
+  backend_cv_.notify_all();
+  backend_thread_.join();
+}
+
+void OfflinePipeline::runBackend(const BackendJob& job) {
   const auto t0 = Clock::now();
-  backend_->addEvents(events);
+  backend_->addEvents(job.events);
   const int64_t step = std::max<int64_t>(1, secToNs(1.0 / config_.backend.output_rate_hz));
-  for (size_t i = first_new_arc; i < arcs_.size(); ++i) {
-    ArcEstimate arc = arcs_[i];
+  for (ArcEstimate arc : job.arcs) {
     if (!arc_truth_.empty()) {
       double truth = 0.0;
       if (meanYawRate(arc_truth_, arc.t_start_ns, arc.t_end_ns, &truth)) {
@@ -64,8 +78,60 @@ void OfflinePipeline::runBackend(const EventVector& events, size_t first_new_arc
     });
     backend_->process();
   }
-  if (at_end) backend_->finish();
+  if (job.at_end) backend_->finish();
   backend_s_ += secondsSince(t0);
+}
+
+void OfflinePipeline::submitBackend(BackendJob job) {
+  if (!backend_) return;
+  if (!backend_thread_.joinable()) {
+    runBackend(job);
+    return;
+  }
+  std::unique_lock<std::mutex> lock(backend_mutex_);
+  if (backend_jobs_.size() >= kMaxBackendJobs && !backend_error_) {
+    ++backend_waits_;
+    const auto t0 = Clock::now();
+    backend_cv_.wait(lock, [&] { return backend_jobs_.size() < kMaxBackendJobs || backend_error_; });
+    backend_wait_s_ += secondsSince(t0);
+  }
+  if (backend_error_) std::rethrow_exception(backend_error_);
+  backend_jobs_.push_back(std::move(job));
+  lock.unlock();
+  backend_cv_.notify_all();
+}
+
+void OfflinePipeline::backendLoop() {
+  std::unique_lock<std::mutex> lock(backend_mutex_);
+  while (true) {
+    backend_cv_.wait(lock, [&] { return backend_stop_ || !backend_jobs_.empty(); });
+    if (backend_jobs_.empty()) return;
+    BackendJob job = std::move(backend_jobs_.front());
+    backend_jobs_.pop_front();
+    backend_busy_ = true;
+    const bool failed = backend_error_ != nullptr;  // after an error the jobs are only drained
+    lock.unlock();
+    backend_cv_.notify_all();  // room in the queue
+    std::exception_ptr error;
+    if (!failed) {
+      try {
+        runBackend(job);
+      } catch (...) {
+        error = std::current_exception();
+      }
+    }
+    lock.lock();
+    if (error) backend_error_ = error;
+    backend_busy_ = false;
+    backend_cv_.notify_all();
+  }
+}
+
+void OfflinePipeline::waitBackend() const {
+  if (!backend_thread_.joinable()) return;
+  std::unique_lock<std::mutex> lock(backend_mutex_);
+  backend_cv_.wait(lock, [&] { return (backend_jobs_.empty() && !backend_busy_) || backend_error_; });
+  if (backend_error_) std::rethrow_exception(backend_error_);
 }
 
 void OfflinePipeline::setBackendArcsFromTruth(Trajectory3 truth, double blend) {
@@ -79,15 +145,20 @@ void OfflinePipeline::setBackendArcsFromTruth(Trajectory3 truth, double blend) {
 
 void OfflinePipeline::addEvents(const EventVector& events) {
   if (events.empty()) return;
-  if (t_first_ < 0) t_first_ = events.front().t_ns;
+  if (t_first_ < 0) {
+    t_first_ = events.front().t_ns;
+    wall0_ = Clock::now();
+  }
   t_last_ = std::max(t_last_, events.back().t_ns);
   events_ += events.size();
   const auto t0 = Clock::now();
-  const size_t first_new_arc = arcs_.size();
+  BackendJob job;
   frontend_.addEvents(events);
-  for (const ArcEstimate& a : frontend_.process()) arcs_.push_back(a);
+  for (const ArcEstimate& a : frontend_.process()) arcs_.push_back(a), job.arcs.push_back(a);
   frontend_s_ += secondsSince(t0);
-  runBackend(events, first_new_arc, false);
+  if (!backend_) return;
+  job.events = events;
+  submitBackend(std::move(job));
 }
 
 void OfflinePipeline::addOdometry(int64_t t_ns, double v, double w) {
@@ -106,13 +177,17 @@ void OfflinePipeline::addGyro(int64_t t_ns, double w) { frontend_.addGyro(t_ns, 
 
 void OfflinePipeline::finish() {
   const auto t0 = Clock::now();
-  const size_t first_new_arc = arcs_.size();
-  for (const ArcEstimate& a : frontend_.process()) arcs_.push_back(a);
+  BackendJob job;
+  job.at_end = true;
+  for (const ArcEstimate& a : frontend_.process()) arcs_.push_back(a), job.arcs.push_back(a);
   frontend_s_ += secondsSince(t0);
-  runBackend({}, first_new_arc, true);
+  submitBackend(std::move(job));
+  waitBackend();
+  if (t_first_ >= 0) pipeline_wall_s_ = secondsSince(wall0_);
 }
 
 void OfflinePipeline::startMapping(const std::string& depth_png_dir) {
+  waitBackend();
   // The back-end's spline sampled densely (linear/slerp in between is far below a pixel).
   map_trajectory_ =
       backend_ && backend_->hasSpline() ? backend_->sampleTrajectory(200.0) : frontendTrajectory();
@@ -170,6 +245,7 @@ void OfflinePipeline::finishMapping() {
 
 Trajectory3 OfflinePipeline::backendTrajectory() const {
   if (!backend_) return {};
+  waitBackend();
   return backend_->sampleTrajectory(config_.backend.output_rate_hz);
 }
 
@@ -210,6 +286,7 @@ void writeArcsCsv(const std::string& path, const std::vector<ArcEstimate>& arcs)
 }
 
 nlohmann::json OfflinePipeline::report() const {
+  waitBackend();
   const double duration = t_first_ >= 0 ? dtSec(t_last_, t_first_) : 0.0;
   size_t by_status[4] = {0, 0, 0, 0};
   for (const ArcEstimate& a : arcs_) ++by_status[int(a.status)];
@@ -218,9 +295,15 @@ nlohmann::json OfflinePipeline::report() const {
   j["duration_s"] = duration;
   j["events"] = events_;
   j["windows"] = arcs_.size();
-  const double total_s = frontend_s_ + backend_s_ + mapping_s_;
+  const double total_s = processingSeconds();
   j["processing_s"] = total_s;
   j["real_time_factor"] = duration > 0 ? total_s / duration : 0.0;
+  // Front-end and back-end together, by the wall clock (the stages' busy times are below).
+  j["event_pipeline"] = {{"wall_s", pipeline_wall_s_},
+                         {"real_time_factor", duration > 0 ? pipeline_wall_s_ / duration : 0.0},
+                         {"backend_thread", backend_thread_.joinable()},
+                         {"frontend_waits_for_backend", backend_waits_},
+                         {"frontend_wait_s", backend_wait_s_}};
   j["stages"]["frontend"] = {{"processing_s", frontend_s_},
                              {"real_time_factor", duration > 0 ? frontend_s_ / duration : 0.0},
                              {"windows", arcs_.size()},
@@ -305,6 +388,7 @@ nlohmann::json OfflinePipeline::report() const {
 }
 
 void OfflinePipeline::writeOutputs(const std::string& out_dir, const nlohmann::json& extra) const {
+  waitBackend();
   makeDirs(out_dir);
   writeTum(out_dir + "/frontend.tum", frontendTrajectory());
   writeArcsCsv(out_dir + "/arcs.csv", arcs_);

@@ -164,21 +164,35 @@ double ProjectiveVolume::varianceOfRays(const std::vector<VolumeRay>& rays, size
           g[idx + W + 1] += ax * ay;
           ++n;
         });
-      if (sensitivities) {
-        // d(sum_c V_c w_c)/du and /dv for the bilinear weights w_c(ax, ay). The mean of the
-        // volume drops out: the weights' derivatives sum to zero.
-        Eigen::Vector4d* acc = chunk_sens_[size_t(c)].data();
-        const double drho = rho_[l];
-        for (size_t i = 0; i < N; ++i)
-          forEachPlaneVote(rays[i], rho, [&](size_t idx, float ax, float ay) {
-            const float v00 = g[idx], v10 = g[idx + 1], v01 = g[idx + W], v11 = g[idx + W + 1];
-            const double gu = double((v10 - v00) * (1 - ay) + (v11 - v01) * ay);
-            const double gv = double((v01 - v00) * (1 - ax) + (v11 - v10) * ax);
-            acc[i] += Eigen::Vector4d(gu, gu * drho, gv, gv * drho);
+      plane_counts_[size_t(l)] = n;
+      if (!sensitivities) {
+        plane_squares_[size_t(l)] = takeSquares(g, rays, rho, 4 * n >= plane_voxels);
+        continue;
+      }
+      // d(sum_c V_c w_c)/du and /dv for the bilinear weights w_c(ax, ay). The mean of the
+      // volume drops out: the weights' derivatives sum to zero. The same reads give the sum of
+      // squares: sum_voxels V^2 = sum_votes sum_c w_c V_c (every V is the sum of its votes' w).
+      Eigen::Vector4d* acc = chunk_sens_[size_t(c)].data();
+      const double drho = rho_[l];
+      double q = 0.0;
+      for (size_t i = 0; i < N; ++i)
+        forEachPlaneVote(rays[i], rho, [&](size_t idx, float ax, float ay) {
+          const float v00 = g[idx], v10 = g[idx + 1], v01 = g[idx + W], v11 = g[idx + W + 1];
+          const float top = v00 + (v10 - v00) * ax, bottom = v01 + (v11 - v01) * ax;
+          q += double(top + (bottom - top) * ay);
+          const double gu = double((v10 - v00) * (1 - ay) + (v11 - v01) * ay);
+          const double gv = double((v01 - v00) * (1 - ax) + (v11 - v10) * ax);
+          acc[i] += Eigen::Vector4d(gu, gu * drho, gv, gv * drho);
+        });
+      plane_squares_[size_t(l)] = q;
+      if (4 * n >= plane_voxels) {
+        std::fill(g, g + plane_voxels, 0.0f);
+      } else {
+        for (const VolumeRay& r : rays)
+          forEachPlaneVote(r, rho, [&](size_t idx, float, float) {
+            g[idx] = g[idx + 1] = g[idx + W] = g[idx + W + 1] = 0.0f;
           });
       }
-      plane_counts_[size_t(l)] = n;
-      plane_squares_[size_t(l)] = takeSquares(g, rays, rho, 4 * n >= plane_voxels);
     }
   });
   if (sensitivities) {

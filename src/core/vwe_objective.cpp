@@ -182,10 +182,20 @@ VweObjectivePool::VweObjectivePool(const CameraModel& camera, const VolumeOption
     volumes_.push_back(std::make_unique<ProjectiveVolume>(single, c.width, c.height, c.fx, c.fy, c.cx, c.cy));
     objectives_.push_back(std::make_unique<VweObjective>(camera, volumes_.back().get()));
   }
+  if (pool_.numThreads() > 1) {
+    wide_volume_ = std::make_unique<ProjectiveVolume>(options, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
+    wide_objective_ = std::make_unique<VweObjective>(camera, wide_volume_.get());
+  }
 }
 
 void VweObjectivePool::run(int n, const std::function<void(int, VweObjective&)>& fn) {
-  pool_.run(n, [&](int i, int t) { fn(i, *objectives_[size_t(t)]); });
+  // Whole rounds of one volume per thread; the rest (3 volumes on 2 threads: the third) one
+  // after another on all threads, instead of leaving threads idle for a round.
+  if (n <= 0) return;
+  const int T = pool_.numThreads();
+  const int spread = wide_objective_ ? n - n % T : n;
+  pool_.run(spread, [&](int i, int t) { fn(i, *objectives_[size_t(t)]); });
+  for (int i = spread; i < n; ++i) fn(i, *wide_objective_);
 }
 
 }  // namespace vwe_vo

@@ -28,8 +28,8 @@ namespace {
 
 const char* kUsage =
     "usage: vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out OUTDIR\n"
-    "                      [--use-odom] [--frontend-only] [--events-topic T] [--odom-topic T] [--imu-topic T]\n"
-    "                      [--no-map] [--depth-png] [--baseline] [--baseline-only] [--image-topic T] [--quiet]\n"
+    "                      [--use-odom] [--frontend-only] [--backend-inline] [--events-topic T] [--odom-topic T]\n"
+    "                      [--imu-topic T] [--no-map] [--depth-png] [--baseline] [--baseline-only] [--image-topic T] [--quiet]\n"
     "                      [--start S] [--truth-arcs GT.tum [--truth-arcs-blend A]]\n"
     "  Runs the front-end and the back-end over recorded events at full speed (a bag from S seconds\n"
     "  after its start with --start, as a live system that starts late). Writes\n"
@@ -38,7 +38,9 @@ const char* kUsage =
     "  live) and OUTDIR/spline.json. Then (unless --no-map) a second pass over the\n"
     "  events maps them (EMVS) on the back-end's trajectory (the front-end's with --frontend-only)\n"
     "  into OUTDIR/map.ply (binary PLY, odom frame); --depth-png adds OUTDIR/depth/depth_NNNN.png\n"
-    "  per keyframe. An ECD folder holds events.txt or events.txt.gz, calib.txt and optionally\n"
+    "  per keyframe. The back-end runs on its own thread beside the front-end (as the nodes do live);\n"
+    "  --backend-inline runs it in the front-end's thread after each event chunk (same results).\n"
+    "  An ECD folder holds events.txt or events.txt.gz, calib.txt and optionally\n"
     "  extrinsics.txt (T_base_cam, overrides the config).\n"
     "  --baseline: also runs the frame-based baseline (KLT + 1-point Ackermann RANSAC) on the APS\n"
     "  frames (ECD: images.txt + images/, bag: /dvs/image_raw) and writes OUTDIR/baseline.tum and a\n"
@@ -118,7 +120,7 @@ class Progress {
 
 int main(int argc, char** argv) {
   std::map<std::string, std::string> args;
-  bool use_odom = false, quiet = false, frontend_only = false, map = true, depth_png = false;
+  bool use_odom = false, quiet = false, frontend_only = false, backend_inline = false, map = true, depth_png = false;
   bool baseline = false, baseline_only = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -129,6 +131,8 @@ int main(int argc, char** argv) {
       use_odom = true;
     } else if (a == "--frontend-only") {
       frontend_only = true;
+    } else if (a == "--backend-inline") {
+      backend_inline = true;
     } else if (a == "--no-map") {
       map = false;
     } else if (a == "--depth-png") {
@@ -182,6 +186,7 @@ int main(int argc, char** argv) {
     vwe_vo::PipelineConfig cfg = vwe_vo::loadPipelineConfig(
         args.count("--config") ? args["--config"] : vwe_vo::defaultConfigDir() + "/vwe_vo.yaml");
     cfg.frontend_only = frontend_only;
+    cfg.backend_thread = !backend_inline;
     for (const auto& w : cfg.warnings) std::cerr << "vwe_vo_offline: warning: " << w << "\n";
     if (args.count("--nominal-speed")) {
       cfg.frontend.nominal_speed_mps = std::stod(args["--nominal-speed"]);

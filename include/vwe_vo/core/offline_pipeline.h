@@ -1,9 +1,17 @@
-// The pipeline run synchronously at full speed over recorded data (the offline runner and the
-// benchmarks): the same core objects the nodes use, fed in time order, with timing per stage.
+// The pipeline run at full speed over recorded data (the offline runner and the benchmarks): the
+// same core objects the nodes use, fed in time order, with timing per stage. As frontend_node and
+// backend_node do live, the back-end runs beside the front-end (its own thread, unless
+// config.backend_thread is false) and gets the same inputs in the same order: the results do not
+// depend on the threading.
 #pragma once
 
 #include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <exception>
 #include <memory>
+#include <mutex>
+#include <thread>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -18,14 +26,20 @@
 namespace vwe_vo {
 
 class OfflinePipeline {
+  using Clock = std::chrono::steady_clock;
+
  public:
   explicit OfflinePipeline(const PipelineConfig& config);
+  ~OfflinePipeline();
+  OfflinePipeline(const OfflinePipeline&) = delete;
+  OfflinePipeline& operator=(const OfflinePipeline&) = delete;
 
   /// Feeds time-ordered events (any chunk size) and runs the stages that can run.
   void addEvents(const EventVector& events);
   void addOdometry(int64_t t_ns, double v_mps, double yaw_rate_rad_s);
   void addGyro(int64_t t_ns, double yaw_rate_rad_s);
-  /// Processes what is left. Call once at the end.
+  /// Processes what is left and waits for the back-end. Call once at the end. An error of the
+  /// back-end's thread is rethrown here (or by the next addEvents).
   void finish();
 
   /// Runs the frame-based baseline (config.baseline) on frames given to addFrame().
@@ -50,12 +64,18 @@ class OfflinePipeline {
 
   /// Back-end trajectory sampled at backend.output_rate_hz (empty without a back-end).
   Trajectory3 backendTrajectory() const;
-  /// The back-end (null if config.frontend_only).
-  const Backend* backend() const { return backend_.get(); }
+  /// The back-end (null if config.frontend_only), once it has caught up with the input.
+  const Backend* backend() const {
+    waitBackend();
+    return backend_.get();
+  }
   /// The continuous odometry backend_node would publish live (/vwe/odom, REP-105): each pose
   /// composed from the back-end's estimate when its arc arrived, before the refinement it
   /// triggers, at backend.output_rate_hz; a pose once out is never changed.
-  const Trajectory3& odometryTrajectory() const { return odometry_trajectory_; }
+  const Trajectory3& odometryTrajectory() const {
+    waitBackend();
+    return odometry_trajectory_;
+  }
 
   /// Mapping (EMVS) in a second pass over the events, after finish(): on the back-end's refined
   /// trajectory, or the front-end's dead reckoning with frontend_only. With depth_png_dir, a
@@ -75,7 +95,9 @@ class OfflinePipeline {
   size_t events() const { return events_; }
   int64_t firstTime() const { return t_first_; }
   int64_t lastTime() const { return t_last_; }
-  double processingSeconds() const { return frontend_s_ + backend_s_ + mapping_s_; }
+  /// Wall-clock seconds of the event pipeline, from the first addEvents() to the end of finish()
+  /// (what the caller does in between, such as decoding a bag, included), plus mapping's.
+  double processingSeconds() const { return pipeline_wall_s_ + mapping_s_; }
   const Frontend& frontend() const { return frontend_; }
 
  private:
@@ -92,7 +114,28 @@ class OfflinePipeline {
   size_t arcs_from_truth_ = 0, arcs_outside_truth_ = 0;
   size_t events_ = 0;
   int64_t t_first_ = -1, t_last_ = -1;
-  double frontend_s_ = 0.0, backend_s_ = 0.0;
+  double frontend_s_ = 0.0, backend_s_ = 0.0;  // busy time of each stage
+  Clock::time_point wall0_;
+  double pipeline_wall_s_ = 0.0;
+  // The back-end's thread: jobs in input order, at most kMaxBackendJobs waiting.
+  struct BackendJob {
+    EventVector events;
+    std::vector<ArcEstimate> arcs;  // the arcs the front-end made after these events
+    bool at_end = false;
+  };
+  void submitBackend(BackendJob job);
+  void backendLoop();
+  /// Blocks until the back-end has done every job; rethrows its error.
+  void waitBackend() const;
+  void runBackend(const BackendJob& job);
+  std::thread backend_thread_;
+  mutable std::mutex backend_mutex_;
+  mutable std::condition_variable backend_cv_;
+  std::deque<BackendJob> backend_jobs_;
+  bool backend_busy_ = false, backend_stop_ = false;
+  std::exception_ptr backend_error_;
+  size_t backend_waits_ = 0;       // the front-end waited for a full queue
+  double backend_wait_s_ = 0.0;
   // Mapping.
   void onKeyframes(const std::vector<EmvsKeyframe>& keyframes);
   std::unique_ptr<EmvsMapper> mapper_;
@@ -102,7 +145,6 @@ class OfflinePipeline {
   EmvsCounts map_counts_;
   size_t map_keyframes_ = 0;
   double mapping_s_ = 0.0;
-  void runBackend(const EventVector& events, size_t first_new_arc, bool at_end);
 };
 
 /// Writes a spline as JSON: degree, knot epoch, knots [s], control points [m], standstills [s].

@@ -45,6 +45,8 @@ struct PipelineConfig {
   GlobalMapOptions global_map;
   FrameBaselineOptions baseline;      // the frame-based baseline (vwe_vo_offline --baseline, frame_baseline_node)
   bool frontend_only = false;         // skip the back-end (set by the caller, not the file)
+  bool backend_thread = true;         // OfflinePipeline: the back-end on its own thread, fed in order
+                                      // (as backend_node beside frontend_node; same results)
   std::vector<std::string> warnings;  // unknown keys and the like
 };
 

@@ -87,21 +87,26 @@ class VweObjective {
 
 /// One VweObjective per thread, each with its own single-threaded volume (options.num_threads
 /// of them): many volumes are evaluated at once, one per thread, with no synchronisation inside a
-/// volume (the back-end's multi-volume objective).
+/// volume (the back-end's multi-volume objective). Volumes left over from whole rounds go to one
+/// more objective whose volume uses all threads. Results do not depend on which objective runs
+/// a volume (the VWE's sums do not depend on its thread count).
 class VweObjectivePool {
  public:
   VweObjectivePool(const CameraModel& camera, const VolumeOptions& options);
   int numThreads() const { return pool_.numThreads(); }
   /// The geometry every evaluator's volume shares.
   const ProjectiveVolume& volume() const { return *volumes_.front(); }
-  /// Runs fn(i, objective) for i in [0, n) on the threads and returns when all are done; each
-  /// call gets the objective of the thread running it.
+  /// Runs fn(i, objective) for i in [0, n) and returns when all are done: n - n % numThreads()
+  /// calls at once, each with the objective of the thread running it, then the rest one by one
+  /// with the all-threads objective.
   void run(int n, const std::function<void(int i, VweObjective& objective)>& fn);
 
  private:
   ThreadPool pool_;
   std::vector<std::unique_ptr<ProjectiveVolume>> volumes_;
   std::vector<std::unique_ptr<VweObjective>> objectives_;
+  std::unique_ptr<ProjectiveVolume> wide_volume_;  // options.num_threads threads (null for 1)
+  std::unique_ptr<VweObjective> wide_objective_;
 };
 
 }  // namespace vwe_vo
