@@ -117,7 +117,7 @@ class OfflinePipeline {
   double frontend_s_ = 0.0, backend_s_ = 0.0;  // busy time of each stage
   Clock::time_point wall0_;
   double pipeline_wall_s_ = 0.0;
-  // The back-end's thread: jobs in input order, at most kMaxBackendJobs waiting.
+  // The back-end's thread: jobs in input order, at most kMaxQueuedEvents events waiting.
   struct BackendJob {
     EventVector events;
     std::vector<ArcEstimate> arcs;  // the arcs the front-end made after these events
@@ -132,6 +132,7 @@ class OfflinePipeline {
   mutable std::mutex backend_mutex_;
   mutable std::condition_variable backend_cv_;
   std::deque<BackendJob> backend_jobs_;
+  size_t backend_queued_events_ = 0;
   bool backend_busy_ = false, backend_stop_ = false;
   std::exception_ptr backend_error_;
   size_t backend_waits_ = 0;       // the front-end waited for a full queue
