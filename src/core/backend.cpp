@@ -27,6 +27,7 @@ void BackendOptions::validate() const {
   if (min_events_per_volume > max_events_per_volume)
     fail("min_events_per_volume must be <= max_events_per_volume");
   if (max_iterations < 0) fail("max_iterations must be >= 0");
+  if (max_line_search_steps < 1 || max_line_search_steps > 100) fail("max_line_search_steps must be in [1, 100]");
   if (!(function_tolerance > 0 && function_tolerance < 0.1)) fail("function_tolerance must be in (0, 0.1)");
   if (!(step_scale_per_span > 0 && step_scale_per_span <= 10))
     fail("step_scale_per_span must be in (0, 10]");
@@ -564,6 +565,7 @@ void Backend::refine(int64_t t_new_ns) {
   so.line_search_direction_type = ceres::LBFGS;
   so.max_num_iterations = options_.max_iterations;
   so.function_tolerance = options_.function_tolerance;
+  so.max_num_line_search_step_size_iterations = options_.max_line_search_steps;
   so.gradient_tolerance = 1e-8;
   so.parameter_tolerance = 1e-6;
   so.logging_type = ceres::SILENT;

@@ -120,6 +120,7 @@ void loadOptions(const YAML::Node& node, const std::string& section, BackendOpti
   s.get("min_events_per_volume", &o->min_events_per_volume);
   s.get("max_iterations", &o->max_iterations);
   s.get("function_tolerance", &o->function_tolerance);
+  s.get("max_line_search_steps", &o->max_line_search_steps);
   s.get("step_scale_per_span", &o->step_scale_per_span);
   s.get("init_sample_interval_s", &o->init_sample_interval_s);
   s.get("smoothness_weight", &o->smoothness_weight);

@@ -610,6 +610,9 @@ TEST(Backend, OptionsValidateNamesTheField) {
   o.max_events_per_volume = 10;
   expectField(o, "max_events_per_volume");
   o = BackendOptions();
+  o.max_line_search_steps = 0;
+  expectField(o, "max_line_search_steps");
+  o = BackendOptions();
   o.volume.num_planes = 0;
   expectField(o, "num_planes");
   EXPECT_THROW(Backend(o, CameraModel(testCalibration()), testExtrinsics()), std::invalid_argument);
@@ -761,9 +764,10 @@ TEST(Backend, YamlLoaderFillsBackendOptionsAndNamesBadKeys) {
   auto write = [&](const std::string& backend) {
     std::ofstream(path) << "camera_calibration: " << calib << "\nbackend:\n" << backend;
   };
-  write("  window_s: 3.0\n  tau1_s: 0.25\n  bogus_key: 1\n  volume:\n    num_planes: 17\n");
+  write("  window_s: 3.0\n  tau1_s: 0.25\n  max_line_search_steps: 7\n  bogus_key: 1\n  volume:\n    num_planes: 17\n");
   const PipelineConfig cfg = loadPipelineConfig(path);
   EXPECT_EQ(cfg.backend.window_s, 3.0);
+  EXPECT_EQ(cfg.backend.max_line_search_steps, 7);
   EXPECT_EQ(cfg.backend.tau1_s, 0.25);
   EXPECT_EQ(cfg.backend.volume.num_planes, 17);
   EXPECT_EQ(cfg.backend.tau2_s, BackendOptions().tau2_s);

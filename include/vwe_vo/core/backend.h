@@ -34,6 +34,7 @@ struct BackendOptions {
   size_t min_events_per_volume = 300;    // fewer events: the volume is skipped [events]
   int max_iterations = 20;               // LBFGS iterations per refinement
   double function_tolerance = 1e-5;      // LBFGS stops when the relative cost change is below this [1]
+  int max_line_search_steps = 20;        // evaluations a line search may take (Ceres' default 20)
   double step_scale_per_span = 0.25;     // solver unit of a control-point coordinate, as a fraction of the distance driven per knot span (at least 1 mm) [1]
   double init_sample_interval_s = 0.05;  // spacing of the dead-reckoned poses fitted [s]
   double smoothness_weight = 0.05;       // second-difference prior of the initial fit [1]
