@@ -69,12 +69,22 @@ Eigen::VectorXd MultiVolumeObjective::freeParams() const {
   return x;
 }
 
-double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient) {
+void MultiVolumeObjective::setParams(const Eigen::VectorXd& params) {
   if (params.size() != numFree())
     throw std::invalid_argument("MultiVolumeObjective: " + std::to_string(params.size()) +
                                 " parameters, expected " + std::to_string(numFree()));
   for (int i = first_free_; i < spline_->numControlPoints(); ++i)
     spline_->setControlPoint(i, params.segment<2>(2 * (i - first_free_)));
+}
+
+double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient) {
+  constexpr size_t kKept = 4;
+  setParams(params);
+  for (const Kept& k : kept_) {
+    if (k.params != params || (gradient && k.gradient.size() == 0)) continue;
+    if (gradient) *gradient = k.gradient;
+    return k.value;
+  }
   ++evaluations_;
   const int n = int(volumes_.size());
   variances_.assign(size_t(n), 0.0);
@@ -93,6 +103,8 @@ double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::Vect
     sum += variances_[size_t(i)];
     if (gradient) *gradient += full_gradients_[size_t(i)].tail(numFree());
   }
+  if (kept_.size() == kKept) kept_.erase(kept_.begin());
+  kept_.push_back({params, gradient ? *gradient : Eigen::VectorXd(), sum});
   return sum;
 }
 
@@ -535,7 +547,9 @@ void Backend::refine(int64_t t_new_ns) {
 
   MultiVolumeObjective objective(spline_, T_base_cam_, first_free, std::move(volumes), &objectives_);
   const Eigen::VectorXd params0 = objective.freeParams();
-  const double f0 = objective.evaluate(params0, nullptr);
+  // With the gradient: the solver's first evaluation, at params0, is then already done.
+  Eigen::VectorXd g0;
+  const double f0 = objective.evaluate(params0, &g0);
   if (!(f0 > 0) || !std::isfinite(f0)) return;
 
   const auto t0 = std::chrono::steady_clock::now();
@@ -573,7 +587,7 @@ void Backend::refine(int64_t t_new_ns) {
   Eigen::VectorXd x = Eigen::VectorXd::Zero(params0.size());
   ceres::Solve(so, problem, x.data(), &summary);
   const Eigen::VectorXd params = cost->params(x.data());
-  const double f1 = objective.evaluate(params, nullptr);
+  const double f1 = objective.evaluate(params, nullptr);  // the solver's last point: kept
   stats_.solver_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   stats_.evaluations += objective.evaluations();
   stats_.solver_iterations += summary.iterations.empty() ? 0 : summary.iterations.size() - 1;
@@ -581,7 +595,7 @@ void Backend::refine(int64_t t_new_ns) {
   // Accept what lowered the total cost (VWE and speed prior); anything else is reverted.
   if (!(summary.final_cost <= summary.initial_cost) || !std::isfinite(f1) || !params.allFinite()) {
     ++stats_.rejected;
-    objective.evaluate(params0, nullptr);  // restores the start
+    objective.setParams(params0);  // restores the start
     stats_.last_gain = 1.0;
   } else {
     stats_.last_gain = f1 / f0;

@@ -89,8 +89,13 @@ class MultiVolumeObjective {
   const std::vector<BackendVolume>& volumes() const { return volumes_; }
   /// The free control points currently in the spline.
   Eigen::VectorXd freeParams() const;
-  /// Sum of variances at params; gradient (if not null) w.r.t. the free parameters.
+  /// Sum of variances at params; gradient (if not null) w.r.t. the free parameters. Sets the
+  /// spline's free control points to params. The last few results are kept: asking again for
+  /// the same params (the solver's start and end points) costs no evaluation.
   double evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient);
+  /// Sets the spline's free control points to params (no evaluation).
+  void setParams(const Eigen::VectorXd& params);
+  /// Evaluations computed (not served from the kept results).
   size_t evaluations() const { return evaluations_; }
 
  private:
@@ -102,6 +107,11 @@ class MultiVolumeObjective {
   std::vector<double> variances_;                // per volume
   std::vector<Eigen::VectorXd> full_gradients_;  // per volume, w.r.t. every control point
   size_t evaluations_ = 0;
+  struct Kept {
+    Eigen::VectorXd params, gradient;  // gradient empty if not computed
+    double value;
+  };
+  std::vector<Kept> kept_;  // the newest last
 };
 
 /// A soft prior on the free control points of a spline (part of the back-end's cost).

@@ -96,7 +96,8 @@ class OfflinePipeline {
   int64_t firstTime() const { return t_first_; }
   int64_t lastTime() const { return t_last_; }
   /// Wall-clock seconds of the event pipeline, from the first addEvents() to the end of finish()
-  /// (what the caller does in between, such as decoding a bag, included), plus mapping's.
+  /// (what the caller does in between, such as decoding a bag or running the frame baseline,
+  /// included), plus mapping's.
   double processingSeconds() const { return pipeline_wall_s_ + mapping_s_; }
   const Frontend& frontend() const { return frontend_; }
 
