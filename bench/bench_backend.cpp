@@ -72,7 +72,8 @@ BENCHMARK(BM_MultiVolumeObjective)
     ->Args({10, 20000, 0, 2})
     ->Args({10, 4000, 1, 1})
     ->Args({10, 4000, 1, 2})
-    ->Args({3, 8000, 1, 2})  // config/car.yaml: 3 volumes of 8000 events per refinement
+    ->Args({4, 8000, 1, 2})  // the shipped configs: 4 volumes of 8000 events per refinement
+    ->Args({3, 8000, 1, 2})  // an odd count: the third volume on both threads
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
