@@ -453,7 +453,7 @@ TEST(Backend, ContinuousOdometryHasNoJumpsAtRefinements) {
   int64_t next = arcs.front().t_start_ns;
   size_t e = 0, outputs = 0;
   double max_raw_step = 0, max_continuous_step = 0, max_increment_error = 0;
-  Pose3 raw_prev, out_prev;
+  Pose3 raw_prev = Pose3::Identity(), out_prev = Pose3::Identity();
   for (const ArcEstimate& a : arcs) {
     feed(&backend, sc.events, &e, a);
     for (; next <= a.t_end_ns; next += step) {
