@@ -31,9 +31,7 @@ void makeDirs(const std::string& dir) {
     if (i < dir.size()) partial += dir[i];
   }
 }
-}  // namespace
 
-namespace {
 // Events waiting for the back-end (64 MB; 2 s of the street's 1.9 M events/s): enough for the
 // front-end to run on through a refinement (256 chunks of 1 ms had it wait 7 of 16 s).
 constexpr size_t kMaxQueuedEvents = 4000000;
