@@ -593,6 +593,13 @@ const BSplineCameraModel::Reference& BSplineCameraModel::reference(Reference* fr
   return *fresh;
 }
 
+Vec2 BSplineCameraModel::relativePose(const Reference& ref, int64_t t_ns, double* dpsi,
+                                      PlanarPoseJacobian* jac_t) const {
+  Vec2 p_t;
+  *dpsi = spline_->planarPose(spline_->toSplineTime(t_ns), &p_t, jac_t) - ref.psi;
+  return Eigen::Rotation2Dd(-ref.psi) * (p_t - ref.position);
+}
+
 namespace {
 // d T_Cr_Ct / d(psi, x, y) of T_Vr_Vt with heading R_V: dR_C = R_cb [z]x R_V R_bc d psi,
 // dp_C = R_cb ([z]x R_V p_bc d psi + (dx, dy, 0)).
@@ -612,13 +619,10 @@ PlanarLocalJacobian planarLocalJacobian(const Mat3& R_V, const Pose3& T_base_cam
 Pose3 BSplineCameraModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
   Reference fresh;
   const Reference* ref = &reference(&fresh);
-  Vec2 p_t;
   PlanarPoseJacobian jac_t;
-  const double psi_t = spline_->planarPose(spline_->toSplineTime(t_ns), &p_t, jac ? &jac_t : nullptr);
-  // T_Vr_Vt: heading psi_t - psi_r, position R_r^T (p_t - p_r).
+  double dpsi = 0.0;
+  const Vec2 p_rel = relativePose(*ref, t_ns, &dpsi, jac ? &jac_t : nullptr);
   const Eigen::Rotation2Dd R_rT(-ref->psi);
-  const Vec2 p_rel = R_rT * (p_t - ref->position);
-  const double dpsi = psi_t - ref->psi;
   const Mat3 R_V = rotZ(dpsi);
   const Pose3 T_Vr_Vt = makePose(R_V, Vec3(p_rel.x(), p_rel.y(), 0.0));
   if (jac) {
@@ -657,11 +661,9 @@ Pose3 BSplineCameraModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
 
 Pose3 BSplineCameraModel::T_Cr_CtPlanar(int64_t t_ns, PlanarLocalJacobian* jac) const {
   Reference fresh;
-  const Reference& ref = reference(&fresh);
-  Vec2 p_t;
-  const double psi_t = spline_->planarPose(spline_->toSplineTime(t_ns), &p_t);
-  const Vec2 p_rel = Eigen::Rotation2Dd(-ref.psi) * (p_t - ref.position);
-  const Mat3 R_V = rotZ(psi_t - ref.psi);
+  double dpsi = 0.0;
+  const Vec2 p_rel = relativePose(reference(&fresh), t_ns, &dpsi, nullptr);
+  const Mat3 R_V = rotZ(dpsi);
   if (jac) *jac = planarLocalJacobian(R_V, T_base_cam_);
   return vehicleToCamera(makePose(R_V, Vec3(p_rel.x(), p_rel.y(), 0.0)), T_base_cam_);
 }
@@ -678,14 +680,13 @@ void BSplineCameraModel::addPlanarGradient(const std::vector<int64_t>& t_ns, con
   const Reference& ref = reference(&fresh);
   // psi_rel = psi_t - psi_r and p_rel = R_r^T (p_t - p_r): the control points at t enter through
   // (psi_t, p_t); the reference's through -psi_r, -R_r^T p_r and -psi_r J p_rel, summed over rays.
-  const Eigen::Rotation2Dd R_rT(-ref.psi), R_r(ref.psi);
+  const Eigen::Rotation2Dd R_r(ref.psi);
   double G_psi = 0.0, H = 0.0;
   Vec2 G_p = Vec2::Zero();
   PlanarPoseJacobian jac_t;
   for (size_t i = 0; i < t_ns.size(); ++i) {
-    Vec2 p_t;
-    spline_->planarPose(spline_->toSplineTime(t_ns[i]), &p_t, &jac_t);
-    const Vec2 p_rel = R_rT * (p_t - ref.position);
+    double dpsi = 0.0;
+    const Vec2 p_rel = relativePose(ref, t_ns[i], &dpsi, &jac_t);
     const double g_psi = g[i].x();
     const Vec2 g_p = g[i].tail<2>();
     const Vec2 g_odom = R_r * g_p;  // g_p . (R_r^T dp) = (R_r g_p) . dp
