@@ -87,20 +87,20 @@ double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::Vect
   }
   ++evaluations_;
   const int n = int(volumes_.size());
-  variances_.assign(size_t(n), 0.0);
+  contrasts_.assign(size_t(n), 0.0);
   full_gradients_.resize(size_t(n));
   if (n > 0) {  // (the priors' tests have no volumes and no pool)
     objectives_->run(n, [&](int i, VweObjective& objective) {
       const BackendVolume& v = volumes_[size_t(i)];
       const BSplineCameraModel model(spline_, T_base_cam_, v.t_ref_ns);
-      variances_[size_t(i)] =
-          objective.evaluate(v.events, model, gradient ? &full_gradients_[size_t(i)] : nullptr).variance;
+      contrasts_[size_t(i)] =
+          objective.evaluate(v.events, model, gradient ? &full_gradients_[size_t(i)] : nullptr).contrast;
     });
   }
   if (gradient) gradient->setZero(numFree());
   double sum = 0.0;
   for (int i = 0; i < n; ++i) {
-    sum += variances_[size_t(i)];
+    sum += contrasts_[size_t(i)];
     if (gradient) *gradient += full_gradients_[size_t(i)].tail(numFree());
   }
   if (kept_.size() == kKept) kept_.erase(kept_.begin());

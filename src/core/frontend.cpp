@@ -238,7 +238,7 @@ double Frontend::contrast(const EventVector& events, int64_t t_ref_ns, double om
   const AckermannArcModel model(omega, v, t_ref_ns, T_base_cam_);
   ++stats_.evaluations;
   VweObjective& objective = deep_planes ? *one_sided_objective_ : objective_;
-  return objective.evaluate(events, model).variance;
+  return objective.evaluate(events, model).contrast;
 }
 
 std::vector<double> Frontend::contrasts(const EventVector& events, int64_t t_ref_ns, const std::vector<double>& omegas,
@@ -249,7 +249,7 @@ std::vector<double> Frontend::contrasts(const EventVector& events, int64_t t_ref
   VweObjectivePool& pool = deep_planes ? *one_sided_scan_objectives_ : scan_objectives_;
   pool.run(int(omegas.size()), [&](int i, VweObjective& objective) {
     const AckermannArcModel model(omegas[size_t(i)], v, t_ref_ns, T_base_cam_);
-    f[size_t(i)] = objective.evaluate(events, model).variance;
+    f[size_t(i)] = objective.evaluate(events, model).contrast;
   });
   stats_.evaluations += omegas.size();
   return f;

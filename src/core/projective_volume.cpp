@@ -8,7 +8,7 @@
 namespace vwe_vo {
 namespace {
 constexpr int kPlaneGroup = 4;         // planes voted per pass over a large ray array
-constexpr int kSensitivityChunks = 4;  // plane chunks of varianceOfRays()
+constexpr int kSensitivityChunks = 4;  // plane chunks of contrastOfRays()
 }  // namespace
 
 void VolumeOptions::validate() const {
@@ -122,19 +122,20 @@ size_t ProjectiveVolume::vote(const std::vector<VolumeRay>& rays) {
   return votes;
 }
 
-double ProjectiveVolume::variance() const {
+double ProjectiveVolume::contrast() const {
   double q = 0.0;
   for (float v : grid_) q += double(v) * v;
-  return varianceOf(q);
+  return contrastOf(q, sum_);
 }
 
-double ProjectiveVolume::varianceOf(double sum_squares) const {
+double ProjectiveVolume::contrastOf(double sum_squares, double sum) const {
+  if (options_.contrast == Contrast::kDensityPerVote) return sum > 0 ? sum_squares / sum : 0.0;
   const double n = double(numVoxels());
-  const double mean = sum_ / n;
+  const double mean = sum / n;
   return sum_squares / n - mean * mean;
 }
 
-double ProjectiveVolume::varianceOfRays(const std::vector<VolumeRay>& rays, size_t* votes,
+double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size_t* votes,
                                         std::vector<Eigen::Vector4d>* sensitivities) {
   const int L = options_.num_planes, T = pool_.numThreads();
   const size_t W = size_t(width_), plane_voxels = W * height_, N = rays.size();
@@ -195,17 +196,20 @@ double ProjectiveVolume::varianceOfRays(const std::vector<VolumeRay>& rays, size
       }
     }
   });
-  if (sensitivities) {
-    sensitivities->assign(N, Eigen::Vector4d::Zero());
-    for (const auto& acc : chunk_sens_)
-      for (size_t i = 0; i < N; ++i) (*sensitivities)[i] += acc[i];
-  }
   size_t n = 0;
   double q = 0.0;
   for (int l = 0; l < L; ++l) n += plane_counts_[size_t(l)], q += plane_squares_[size_t(l)];
   if (votes) *votes = n;
-  const double nv = double(numVoxels()), mean = double(n) / nv;
-  return q / nv - mean * mean;
+  if (sensitivities) {
+    // d(sum V^2) = 2 sum_votes grad V . du; sum V = n does not move (see the header).
+    const double scale =
+        options_.contrast == Contrast::kDensityPerVote ? (n > 0 ? 2.0 / double(n) : 0.0) : 2.0 / double(numVoxels());
+    sensitivities->assign(N, Eigen::Vector4d::Zero());
+    for (const auto& acc : chunk_sens_)
+      for (size_t i = 0; i < N; ++i) (*sensitivities)[i] += acc[i];
+    for (Eigen::Vector4d& s : *sensitivities) s *= scale;
+  }
+  return contrastOf(q, double(n));
 }
 
 double ProjectiveVolume::takeSquares(float* plane, const std::vector<VolumeRay>& rays, float rho,
@@ -249,10 +253,10 @@ double ProjectiveVolume::clear(const std::vector<VolumeRay>& rays) {
   });
   double q = 0.0;
   for (double p : plane_squares_) q += p;
-  const double var = varianceOf(q);
+  const double c = contrastOf(q, sum_);
   sum_ = 0.0;
   last_votes_ = 0;
-  return var;
+  return c;
 }
 
 }  // namespace vwe_vo

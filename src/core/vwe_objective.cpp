@@ -144,30 +144,29 @@ VweEvaluation VweObjective::buildRays(const EventVector& events, const Trajector
 VweEvaluation VweObjective::voteOnly(const EventVector& events, const TrajectoryModel& model) {
   VweEvaluation ev = buildRays(events, model, false);
   ev.votes = volume_->vote(rays_);
-  ev.variance = volume_->variance();
+  ev.contrast = volume_->contrast();
   return ev;
 }
 
 VweEvaluation VweObjective::evaluate(const EventVector& events, const TrajectoryModel& model,
                                      Eigen::VectorXd* gradient) {
   VweEvaluation ev = buildRays(events, model, gradient != nullptr);
-  ev.variance = volume_->varianceOfRays(rays_, &ev.votes, gradient ? &sensitivities_ : nullptr);
+  ev.contrast = volume_->contrastOfRays(rays_, &ev.votes, gradient ? &sensitivities_ : nullptr);
   if (gradient) {
     gradient->setZero(model.numParams());
-    const double scale = 2.0 / double(volume_->numVoxels());
     if (model.hasPlanarJacobian()) {
       planar_g_.resize(rays_.size());
       for (size_t i = 0; i < rays_.size(); ++i) {
         const Eigen::Vector4d& s = sensitivities_[i];
         const Eigen::Vector4d* J = &jac_value_[3 * i];
-        planar_g_[i] = scale * Vec3(s.dot(J[0]), s.dot(J[1]), s.dot(J[2]));
+        planar_g_[i] = Vec3(s.dot(J[0]), s.dot(J[1]), s.dot(J[2]));
       }
       model.addPlanarGradient(ray_times_, planar_g_, gradient);
       return ev;
     }
     for (size_t i = 0; i < rays_.size(); ++i) {
       const Eigen::Vector4d& s = sensitivities_[i];
-      for (int j = jac_begin_[i]; j < jac_begin_[i + 1]; ++j) (*gradient)[jac_param_[j]] += scale * s.dot(jac_value_[j]);
+      for (int j = jac_begin_[i]; j < jac_begin_[i + 1]; ++j) (*gradient)[jac_param_[j]] += s.dot(jac_value_[j]);
     }
   }
   return ev;

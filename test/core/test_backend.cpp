@@ -267,8 +267,8 @@ TEST(Backend, PlanarJacobianGivesTheGradientOfTheFullPoseJacobian) {
       Eigen::VectorXd g_planar, g_full;
       double f_planar = 0, f_full = 0;
       vwe.run(1, [&](int, VweObjective& obj) {
-        f_planar = obj.evaluate(sc.events, model, &g_planar).variance;
-        f_full = obj.evaluate(sc.events, FullJacobianView(model), &g_full).variance;
+        f_planar = obj.evaluate(sc.events, model, &g_planar).contrast;
+        f_full = obj.evaluate(sc.events, FullJacobianView(model), &g_full).contrast;
       });
       ASSERT_GT(f_planar, 0.0);
       EXPECT_EQ(f_planar, f_full);

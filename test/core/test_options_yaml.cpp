@@ -82,6 +82,21 @@ TEST(OptionsYaml, UnknownKeysAreReportedAndBadValuesRefused) {
   }
 }
 
+TEST(OptionsYaml, VolumeContrastIsReadAndUnknownMeasuresRefused) {
+  const std::string cal = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
+  const PipelineConfig cfg = loadPipelineConfig(writeTemp(
+      "cfg_contrast.yaml", "camera_calibration: " + cal + "\nbackend:\n  volume: {contrast: variance}\n"));
+  EXPECT_EQ(cfg.backend.volume.contrast, Contrast::kVariance);
+  EXPECT_EQ(cfg.frontend.volume.contrast, Contrast::kDensityPerVote);  // the default
+  try {
+    loadPipelineConfig(writeTemp("cfg_contrast_bad.yaml",
+                                 "camera_calibration: " + cal + "\nfrontend:\n  volume: {contrast: varaince}\n"));
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("volume.contrast: 'varaince'"), std::string::npos) << e.what();
+  }
+}
+
 TEST(OptionsYaml, MappingSection) {
   const std::string cal = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
   const PipelineConfig cfg = loadPipelineConfig(writeTemp(

@@ -3,6 +3,8 @@
 // location of its maximum for events generated from a known motion.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include "../common/synthetic_events.h"
 #include "vwe_vo/core/vwe_objective.h"
 
@@ -47,38 +49,48 @@ EventVector makeEvents(const CameraModel& cam, const TrajectoryModel& truth, int
   return vwe_vo::synthetic::randomPointEvents(cam, truth, n, seed);
 }
 
-VolumeOptions volumeOptions(int threads) {
+VolumeOptions volumeOptions(int threads, Contrast contrast = Contrast::kDensityPerVote) {
   VolumeOptions o;
   o.num_planes = 20;
   o.z_min_m = 0.8;
   o.z_max_m = 10;
   o.num_threads = threads;
+  o.contrast = contrast;
   return o;
+}
+
+/// The contrast of the grid's voxels by brute force, independent of ProjectiveVolume's sums.
+double bruteForceContrast(const ProjectiveVolume& volume, Contrast contrast, double* sum) {
+  double s = 0, q = 0;
+  for (float v : volume.data()) {
+    s += v;
+    q += double(v) * v;
+  }
+  *sum = s;
+  const double nv = double(volume.numVoxels());
+  return contrast == Contrast::kVariance ? q / nv - (s / nv) * (s / nv) : q / s;
 }
 
 }  // namespace
 
-TEST(VweObjective, VarianceFromClearingEqualsBruteForce) {
+TEST(VweObjective, ContrastFromClearingEqualsBruteForce) {
   const CameraModel cam(testCalibration());
+  for (Contrast contrast : {Contrast::kVariance, Contrast::kDensityPerVote})
   for (int threads : {1, 2}) {
-    ProjectiveVolume volume(volumeOptions(threads), cam.width(), cam.height(), 250, 250, 173, 130);
+    ProjectiveVolume volume(volumeOptions(threads, contrast), cam.width(), cam.height(), 250, 250, 173, 130);
     VweObjective obj(cam, &volume);
     const YawForwardModel truth(0.5, 0.4);
     // Sparse votes (clear() visits the votes) and dense ones (clear() sweeps whole planes).
     for (int n : {3000, 400000}) {
       const EventVector ev = makeEvents(cam, truth, n, 1);
-      const double from_clear = obj.evaluate(ev, truth).variance;
+      const double from_clear = obj.evaluate(ev, truth).contrast;
       for (float v : volume.data()) ASSERT_EQ(v, 0.0f);
       const VweEvaluation e = obj.voteOnly(ev, truth);
-      double s = 0, q = 0;
-      for (float v : volume.data()) {
-        s += v;
-        q += double(v) * v;
-      }
-      const double nv = double(volume.numVoxels());
-      const double brute = q / nv - (s / nv) * (s / nv);
+      double s = 0;
+      const double brute = bruteForceContrast(volume, contrast, &s);
       EXPECT_NEAR(from_clear, brute, 1e-6 * brute) << n << " events, " << threads << " threads";
-      EXPECT_NEAR(e.variance, brute, 1e-9 * brute);
+      // (The density divides by the exact vote count, the brute force by the grid's float sum.)
+      EXPECT_NEAR(e.contrast, brute, (contrast == Contrast::kVariance ? 1e-9 : 1e-6) * brute);
       EXPECT_NEAR(s, double(e.votes), 1e-4 * s);  // bilinear weights sum to one per vote
       EXPECT_GT(e.votes, size_t(n) * 10);
       EXPECT_NEAR(volume.clear(obj.lastRays()), brute, 1e-6 * brute);
@@ -89,7 +101,8 @@ TEST(VweObjective, VarianceFromClearingEqualsBruteForce) {
 
 TEST(VweObjective, GradientMatchesCentralFiniteDifferences) {
   const CameraModel cam(testCalibration());
-  ProjectiveVolume volume(volumeOptions(2), cam.width(), cam.height(), 250, 250, 173, 130);
+  for (Contrast contrast : {Contrast::kVariance, Contrast::kDensityPerVote}) {
+  ProjectiveVolume volume(volumeOptions(2, contrast), cam.width(), cam.height(), 250, 250, 173, 130);
   VweObjective obj(cam, &volume);
   const EventVector ev = makeEvents(cam, YawForwardModel(0.5, 0.4), 4000, 2);
   for (double w : {0.3, 0.45, 0.7}) {
@@ -101,9 +114,44 @@ TEST(VweObjective, GradientMatchesCentralFiniteDifferences) {
       YawForwardModel mp = m, mm = m;
       (k == 0 ? mp.w_ : mp.v_) += h;
       (k == 0 ? mm.w_ : mm.v_) -= h;
-      const double fd = (obj.evaluate(ev, mp).variance - obj.evaluate(ev, mm).variance) / (2 * h);
+      const double fd = (obj.evaluate(ev, mp).contrast - obj.evaluate(ev, mm).contrast) / (2 * h);
       EXPECT_NEAR(g[k], fd, 5e-3 * std::abs(fd) + 1e-9) << "param " << k << " at w=" << w;
     }
+  }
+  }
+}
+
+// What the density per vote is for: unfocused votes (rays that meet nothing) raise the variance,
+// which grows with every vote in the grid, but lower the density per vote. So the variance
+// rewards a trajectory for turning rays into the grid, focused or not; the density does not.
+TEST(VweObjective, UnfocusedVotesRaiseTheVarianceButNotTheDensityPerVote) {
+  const CameraModel cam(testCalibration());
+  const YawForwardModel truth(0.5, 0.4);
+  const EventVector ev = makeEvents(cam, truth, 4000, 5);
+  for (Contrast contrast : {Contrast::kVariance, Contrast::kDensityPerVote}) {
+    ProjectiveVolume volume(volumeOptions(1, contrast), cam.width(), cam.height(), 250, 250, 173, 130);
+    VweObjective obj(cam, &volume);
+    obj.voteOnly(ev, truth);
+    const std::vector<VolumeRay> focused = obj.lastRays();
+    volume.clear(focused);
+    // As many rays again, each through its own random pixel: they meet nothing.
+    std::vector<VolumeRay> more = focused;
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> u(0.0f, float(volume.width() - 1)), v(0.0f, float(volume.height() - 1));
+    for (VolumeRay r : focused) {
+      r.u0 = u(rng);
+      r.v0 = v(rng);
+      r.du = r.dv = 0.0f;  // the same pixel in every plane
+      more.push_back(r);
+    }
+    size_t votes_focused = 0, votes_more = 0;
+    const double c_focused = volume.contrastOfRays(focused, &votes_focused);
+    const double c_more = volume.contrastOfRays(more, &votes_more);
+    ASSERT_GT(votes_more, votes_focused + votes_focused / 2);
+    if (contrast == Contrast::kVariance)
+      EXPECT_GT(c_more, 1.05 * c_focused);
+    else
+      EXPECT_LT(c_more, 0.8 * c_focused);
   }
 }
 
@@ -115,7 +163,7 @@ TEST(VweObjective, MultiThreadedEqualsSingleThreaded) {
   const EventVector ev = makeEvents(cam, YawForwardModel(0.5, 0.4), 3000, 3);
   const YawForwardModel m(0.4, 0.4);
   Eigen::VectorXd g1, g2;
-  const double var1 = o1.evaluate(ev, m, &g1).variance, var2 = o2.evaluate(ev, m, &g2).variance;
+  const double var1 = o1.evaluate(ev, m, &g1).contrast, var2 = o2.evaluate(ev, m, &g2).contrast;
   EXPECT_NEAR(var1, var2, 1e-9 * var1);
   EXPECT_NEAR(g1[0], g2[0], 1e-5 * g1.norm());
   EXPECT_NEAR(g1[1], g2[1], 1e-5 * g1.norm());
@@ -129,7 +177,7 @@ TEST(VweObjective, MaximumAtTheTrueYawRate) {
   const EventVector ev = makeEvents(cam, YawForwardModel(w_true, 0.4), 6000, 4);
   double best = -1, best_w = 0;
   for (double w_deg = 0; w_deg <= 50; w_deg += 0.25) {
-    const double var = obj.evaluate(ev, YawForwardModel(w_deg / kDegPerRad, 0.4)).variance;
+    const double var = obj.evaluate(ev, YawForwardModel(w_deg / kDegPerRad, 0.4)).contrast;
     if (var > best) best = var, best_w = w_deg;
   }
   EXPECT_NEAR(best_w, 25.0, 0.5);

@@ -104,7 +104,7 @@ class MultiVolumeObjective {
   int first_free_;
   std::vector<BackendVolume> volumes_;
   VweObjectivePool* objectives_;
-  std::vector<double> variances_;                // per volume
+  std::vector<double> contrasts_;                // per volume
   std::vector<Eigen::VectorXd> full_gradients_;  // per volume, w.r.t. every control point
   size_t evaluations_ = 0;
   struct Kept {

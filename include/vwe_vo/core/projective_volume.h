@@ -13,8 +13,20 @@
 
 namespace vwe_vo {
 
+/// What the VWE objective measures of the votes (the DSI of the mapping ignores it).
+///  - kVariance: the variance over all voxels (paper eq. 3), (sum V^2 - (sum V)^2 / N) / N. It
+///    grows with every vote that lands in the grid, focused or not, so a trajectory that keeps
+///    more rays inside the grid scores higher: with structure on one side of the view, a yaw
+///    error that turns the rays of that side's image border into the grid is rewarded (the
+///    street's left facade pulled the yaw rate left, the right one right).
+///  - kDensityPerVote: sum V^2 / sum V, the mean density a vote meets (at a vote, the value of
+///    the grid there): as sharp as the variance for a fixed set of votes, but votes that leave
+///    or enter the grid do not change it unless they are more or less focused than the rest.
+enum class Contrast { kVariance, kDensityPerVote };
+
 struct VolumeOptions {
   double grid_scale = 0.5;   // grid resolution relative to the sensor (0.5 = half resolution)
+  Contrast contrast = Contrast::kDensityPerVote;  // the objective's measure (see Contrast)
   int margin_px = 8;         // grid padding around the image on each side [grid px]
   int num_planes = 30;       // depth planes, uniform in inverse depth
   double z_min_m = 0.4;      // nearest plane [m]
@@ -53,12 +65,14 @@ class ProjectiveVolume {
   double cx() const { return cx_; }
   double cy() const { return cy_; }
 
-  /// The optimisers' evaluation: the variance over all voxels of the volume the rays vote, and
-  /// (if sensitivities is not null) its gradient per ray, s = [S_u0, S_du, S_v0, S_dv] with
-  /// dVar/dray = (2/N) s . d[u0,du,v0,dv], N = numVoxels(). Votes plane by plane into a scratch
-  /// plane per thread that stays in cache; the grid is not touched, and the cost is bounded by
-  /// the votes (votes cast into *votes if not null).
-  double varianceOfRays(const std::vector<VolumeRay>& rays, size_t* votes,
+  /// The optimisers' evaluation: the contrast (options().contrast) of the volume the rays vote,
+  /// and (if sensitivities is not null) its gradient per ray, s = [S_u0, S_du, S_v0, S_dv] with
+  /// dC/dray = s . d[u0,du,v0,dv]. Votes plane by plane into a scratch plane per thread that
+  /// stays in cache; the grid is not touched, and the cost is bounded by the votes (votes cast
+  /// into *votes if not null). A vote is cast where its bilinear footprint lies inside the grid:
+  /// its weights always sum to one, so the derivative of sum V is zero and
+  /// dC/dray = (2 / N or 2 / sum V) sum over its votes of the grid's gradient there.
+  double contrastOfRays(const std::vector<VolumeRay>& rays, size_t* votes,
                         std::vector<Eigen::Vector4d>* sensitivities = nullptr);
 
   /// The grid, for what reads the voxels (images, the EMVS DSI): bilinear votes of every ray
@@ -67,10 +81,10 @@ class ProjectiveVolume {
   size_t vote(const std::vector<VolumeRay>& rays);
   /// Sum of all voxels (every vote adds weights summing to one).
   double sum() const { return sum_; }
-  /// Variance over all voxels of what vote() put in the grid, by one pass over the grid.
-  double variance() const;
+  /// Contrast (options().contrast) of what vote() put in the grid, by one pass over the grid.
+  double contrast() const;
   /// Clears what vote() touched (cost bounded by the votes: whole planes only when the votes
-  /// cover them anyway) and returns the variance the votes gave the grid.
+  /// cover them anyway) and returns the contrast the votes gave the grid.
   double clear(const std::vector<VolumeRay>& rays);
 
   /// After vote(): the depth of the plane where the ray's bilinear footprint holds the most
@@ -95,9 +109,10 @@ class ProjectiveVolume {
   double fx_, fy_, cx_, cy_;
   std::vector<double> rho_;
   std::vector<float> grid_;                        // allocated by the first vote()
-  std::vector<std::vector<float>> scratch_;        // one plane per thread (varianceOfRays)
+  std::vector<std::vector<float>> scratch_;        // one plane per thread (contrastOfRays)
   std::vector<std::vector<Eigen::Vector4d>> chunk_sens_;
-  double varianceOf(double sum_squares) const;
+  /// The contrast of a grid with this sum of squares and sum (= votes) of its voxels.
+  double contrastOf(double sum_squares, double sum) const;
 
   double sum_ = 0.0;
   size_t last_votes_ = 0;

@@ -1,7 +1,8 @@
 // The Volume of Warped Events objective (paper eq. 2-5): the events of a window become rays
 // o_k + lambda d_k through the reference camera, with o_k = t_Cr_Ct(t_k), d_k = R_Cr_Ct(t_k) f(x_k)
-// from any TrajectoryModel; the variance of their ray density in a ProjectiveVolume is the
-// contrast, and its analytic gradient w.r.t. the model parameters drives the optimisers.
+// from any TrajectoryModel; the contrast of their ray density in a ProjectiveVolume (the variance
+// of the paper, or the density per vote: VolumeOptions::contrast) and its analytic gradient
+// w.r.t. the model parameters drive the optimisers.
 #pragma once
 
 #include <Eigen/Core>
@@ -28,7 +29,7 @@ EventVector subsampleEventsPerTimeSlice(const EventVector& events, int64_t t0_ns
                                         int bins, uint64_t seed);
 
 struct VweEvaluation {
-  double variance = 0.0;
+  double contrast = 0.0;     // VolumeOptions::contrast of the volume the rays vote
   size_t rays = 0;           // events turned into rays
   size_t skipped_time = 0;   // events the model does not cover (not extrapolated)
   size_t skipped_behind = 0; // rays pointing away from the reference camera
@@ -43,8 +44,8 @@ class VweObjective {
   /// The volume is shared (one grid, reused for every evaluation); both must outlive this.
   VweObjective(const CameraModel& camera, ProjectiveVolume* volume);
 
-  /// Variance of the VWE of `events` warped by `model`. If gradient is not null it is resized to
-  /// model.numParams() and set to dVariance/dtheta. Leaves the volume clear.
+  /// Contrast of the VWE of `events` warped by `model`. If gradient is not null it is resized to
+  /// model.numParams() and set to dContrast/dtheta. Leaves the volume clear.
   VweEvaluation evaluate(const EventVector& events, const TrajectoryModel& model,
                          Eigen::VectorXd* gradient = nullptr);
 
