@@ -118,8 +118,9 @@ double headingChangeError(const BSpline& est, const BSpline& truth, double u0, d
 
 /// The multi-volume objective by brute force in double precision, independent of the voting
 /// kernel: rays from the spline, bilinear votes into a dense double grid with the volume's
-/// geometry, variance per volume, summed. The kernel votes in float, whose rounding is larger
-/// than the change a step of 1e-7 m makes: central differences are taken of this reference.
+/// geometry, the contrast per volume (VolumeOptions::contrast), summed. The kernel votes in
+/// float, whose rounding is larger than the change a step of 1e-7 m makes: central differences
+/// are taken of this reference.
 double referenceObjective(const CameraModel& cam, const ProjectiveVolume& volume, const BSpline& spline,
                           const std::vector<BackendVolume>& volumes) {
   const int W = volume.width(), H = volume.height(), L = volume.numPlanes();
@@ -152,14 +153,16 @@ double referenceObjective(const CameraModel& cam, const ProjectiveVolume& volume
     double sum = 0.0, sq = 0.0;
     for (double g : grid) sum += g, sq += g * g;
     const double n = double(grid.size());
-    total += sq / n - (sum / n) * (sum / n);
+    total += volume.options().contrast == Contrast::kVariance ? sq / n - (sum / n) * (sum / n) : sq / sum;
   }
   return total;
 }
 
 }  // namespace
 
-TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
+class BackendContrast : public ::testing::TestWithParam<Contrast> {};
+
+TEST_P(BackendContrast, MultiVolumeGradientMatchesCentralFiniteDifferences) {
   Scene sc(kFdEvents, 1.6, 0.45, 4000);
   // A wide margin keeps every vote inside the grid: a vote leaving the grid vanishes
   // discontinuously, which the analytic gradient cannot see (10-40 % per component with the
@@ -167,6 +170,7 @@ TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
   VolumeOptions vo = testOptions().volume;
   vo.margin_px = 100;
   vo.num_threads = 2;
+  vo.contrast = GetParam();
   VweObjectivePool vwe(sc.cam, vo);
   const ProjectiveVolume& volume = vwe.volume();
   // A perturbed copy of the truth, three volumes around the middle.
@@ -233,6 +237,11 @@ TEST(Backend, MultiVolumeGradientMatchesCentralFiniteDifferences) {
     EXPECT_EQ(spline->controlPoints()[i],
               sc.truth->controlPoints()[i] + 0.02 * Vec2(std::sin(3.0 * i), std::cos(5.0 * i)));
 }
+
+INSTANTIATE_TEST_SUITE_P(Backend, BackendContrast, ::testing::Values(Contrast::kDensityPerVote, Contrast::kVariance),
+                         [](const ::testing::TestParamInfo<Contrast>& info) {
+                           return info.param == Contrast::kVariance ? "Variance" : "DensityPerVote";
+                         });
 
 /// The spline model seen only through its full PoseJacobian (the objective's generic path).
 class FullJacobianView : public TrajectoryModel {
