@@ -25,7 +25,8 @@ struct PipelineRun {
 
 /// Simulates `name` and runs front-end + back-end on it with config/<config>, the speed from
 /// the simulated wheel speed (as --use-odom gives it from /odom) and the gyro's yaw rate (as
-/// vwe_vo_offline gives it from the bag's noise-free /dvs/imu). Nothing before start_s is fed
+/// vwe_vo_offline gives it from the bag's /dvs/imu), both noise-free here (the bag's carry a 1 %
+/// speed scale error, white noise and a gyro bias). Nothing before start_s is fed
 /// (a system started late: its windows fall at other times).
 PipelineRun run(const std::string& name, const std::string& config_file = "vwe_vo.yaml", double start_s = 0.0) {
   const sim::SequenceSpec spec = sim::findSequence(name);
