@@ -28,7 +28,7 @@ def read(path):
                 omega.append(float(a))
                 value.append(float(b))
     if not omega:
-        sys.exit(f"plot_objective.py: {path} holds no 'omega_deg_s,variance' rows")
+        sys.exit(f"plot_objective.py: {path} holds no 'omega_deg_s,contrast' rows")
     return header, omega, value
 
 
@@ -48,7 +48,7 @@ def main():
         best = omega[value.index(top)]
         ax.plot([best], [1.0], "v", color=line.get_color())
     ax.set_xlabel("yaw rate omega [deg/s]")
-    ax.set_ylabel("VWE variance / its maximum")
+    ax.set_ylabel("VWE contrast / its maximum")
     ax.set_title("front-end objective over omega (dashed: ground truth, triangle: maximum)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=6, loc="lower center")

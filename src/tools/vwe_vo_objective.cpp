@@ -1,11 +1,11 @@
-// vwe_vo_objective: the front-end objective (VWE variance) over the yaw rate for one window of a
-// recording, to see why a window's omega came out where it did.
+// vwe_vo_objective: the front-end objective (the VWE's contrast) over the yaw rate for one window
+// of a recording, to see why a window's omega came out where it did.
 //
 //   vwe_vo_objective --bag FILE --t S [--gt GT.tum] [--config YAML] [--duration S] [--v V]
 //                    [--range DEG_S] [--step DEG_S] [--out CSV] [--dump-events F] [--events F]
 //
 // Reads the events of [t - duration/2, t + duration/2) (t in seconds, the bag's time base),
-// subsamples them as the front-end does, and writes `omega_deg_s,variance` for omega in
+// subsamples them as the front-end does, and writes `omega_deg_s,contrast` for omega in
 // [centre - range, centre + range]. With --gt the speed and the true yaw rate over the window
 // come from the ground truth (TUM), the scan is centred on the truth and the header says where
 // the objective peaks relative to it; without it the speed is --v (default: the config's
@@ -36,9 +36,9 @@ constexpr const char* kUsage =
     "usage: vwe_vo_objective --bag FILE --t S [--gt GT.tum] [--config YAML] [--duration S]\n"
     "                        [--v V] [--range DEG_S] [--step DEG_S] [--events-topic T] [--out CSV]\n"
     "                        [--dump-events FILE] [--events FILE]\n"
-    "  Writes the front-end objective (VWE variance) over the yaw rate for the window of\n"
+    "  Writes the front-end objective (the VWE's contrast) over the yaw rate for the window of\n"
     "  --duration (default: the config's window_duration_s) centred at --t [s, bag time] as CSV\n"
-    "  `omega_deg_s,variance` (stdout unless --out). With --gt (TUM of base_link) the speed and\n"
+    "  `omega_deg_s,contrast` (stdout unless --out). With --gt (TUM of base_link) the speed and\n"
     "  the true yaw rate come from the ground truth and the scan is centred on the truth.\n"
     "  --dump-events writes the window's events (`t_ns x y p`) before subsampling; --events\n"
     "  reads the window from such a file (events outside the window are ignored).\n";
@@ -145,7 +145,7 @@ int main(int argc, char** argv) {
     out << "# window " << vwe_vo::nsToSec(t0) << " .. " << vwe_vo::nsToSec(t1) << " s, " << window.size()
         << " events (" << sub.size() << " voted), v " << v << " m/s";
     if (std::isfinite(omega_true)) out << ", true omega " << (omega_true * vwe_vo::kDegPerRad) << " deg/s";
-    out << "\nomega_deg_s,variance\n";
+    out << "\nomega_deg_s,contrast\n";
     double best = -1, best_omega = 0;
     for (double w = centre - range; w <= centre + range + 1e-12; w += step) {
       const double f = frontend.contrast(sub, t_ref, w, v);

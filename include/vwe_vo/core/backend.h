@@ -1,5 +1,5 @@
 // The back-end (paper Sec. III-C): a planar B-spline of base_link refined over a sliding window
-// by maximising the summed variance of M Volumes of Warped Events (paper eq. 5), initialised
+// by maximising the summed contrast of M Volumes of Warped Events (paper eq. 5), initialised
 // from the front-end's dead-reckoned arcs. Synchronous and ROS-free.
 #pragma once
 
@@ -74,7 +74,7 @@ struct BackendVolume {
   EventVector events;
 };
 
-/// Sum of the VWE variances of several volumes (paper eq. 5) as a function of the control
+/// Sum of the VWE contrasts of several volumes (paper eq. 5) as a function of the control
 /// points [first_free, n) of a shared spline (the older ones stay fixed). Parameters are the free
 /// control points stacked [x, y, ...] in metres.
 class MultiVolumeObjective {
@@ -89,7 +89,7 @@ class MultiVolumeObjective {
   const std::vector<BackendVolume>& volumes() const { return volumes_; }
   /// The free control points currently in the spline.
   Eigen::VectorXd freeParams() const;
-  /// Sum of variances at params; gradient (if not null) w.r.t. the free parameters. Sets the
+  /// Sum of contrasts at params; gradient (if not null) w.r.t. the free parameters. Sets the
   /// spline's free control points to params. The last few results are kept: asking again for
   /// the same params (the solver's start and end points) costs no evaluation.
   double evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient);
@@ -168,12 +168,13 @@ class ArcRatePrior : public SplinePrior {
   double weight_;
 };
 
-/// Ceres view of a MultiVolumeObjective: minimises -sum(var)/sum(var at x0) (+ the priors, + a
-/// deformation prior) over x = (params - params0) / step_scale, so that the start is x = 0 with
-/// cost -1. The deformation prior is deformation_weight * sum_i |x_i - 3 x_{i+1} + 3 x_{i+2} -
-/// x_{i+3}|^2 over the control-point moves x_i (the fixed points before the free ones count as
-/// zero moves): it leaves moves that are quadratic in the control-point index free (an offset of
-/// heading or of yaw rate) and damps wiggles the VWE's noise would put into the heading.
+/// Ceres view of a MultiVolumeObjective: minimises -sum(C)/sum(C at x0) of the volumes'
+/// contrasts C (+ the priors, + a deformation prior) over x = (params - params0) / step_scale,
+/// so that the start is x = 0 with cost -1. The deformation prior is deformation_weight *
+/// sum_i |x_i - 3 x_{i+1} + 3 x_{i+2} - x_{i+3}|^2 over the control-point moves x_i (the fixed
+/// points before the free ones count as zero moves): it leaves moves that are quadratic in the
+/// control-point index free (an offset of heading or of yaw rate) and damps wiggles the VWE's
+/// noise would put into the heading.
 class MultiVolumeCost : public ceres::FirstOrderFunction {
  public:
   MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0, double step_scale,
@@ -204,7 +205,7 @@ void fitControlPoints(BSpline* spline, int first, const std::vector<double>& u,
 /// the previous update are refit by least squares to the refined curve up to there and, beyond,
 /// to the front-end's dead reckoning composed onto the refined pose there; then every control
 /// point whose support ends before the window (and always the first p + 1: origin, heading and
-/// scale) is fixed and the others maximise the summed variance of the volumes in the window
+/// scale) is fixed and the others maximise the summed contrast of the volumes in the window
 /// (LBFGS on the analytic gradient, plus the SpeedPrior). Volumes whose reference time is in a
 /// standstill are skipped; STANDSTILL arcs become held intervals of the spline.
 class Backend {

@@ -1,5 +1,5 @@
 // The front-end: per window of events, the 1-DoF Ackermann arc (yaw rate omega at a fixed
-// speed v) that maximises the variance of the Volume of Warped Events; arcs chained into a
+// speed v) that maximises the contrast of the Volume of Warped Events; arcs chained into a
 // dead-reckoned pose. Synchronous and ROS-free: the offline runner and frontend_node drive it.
 #pragma once
 
@@ -127,7 +127,7 @@ class Frontend {
   /// Estimates one window of events about t_ref (exposed for tests and the objective plots).
   ArcEstimate estimateWindow(const EventVector& window_events, int64_t t_ref_ns, double v, double omega_center,
                              double half_range, const WindowScan& setup = WindowScan());
-  /// Variance of the VWE of `events` for an arc (omega, v) about t_ref (with the one-sided
+  /// Contrast of the VWE of `events` for an arc (omega, v) about t_ref (with the one-sided
   /// window's planes if deep_planes).
   double contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v, bool deep_planes = false);
   /// contrast() at every omega, one evaluation per thread (the same values as contrast()).
