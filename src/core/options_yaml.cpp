@@ -62,14 +62,15 @@ void loadOptions(const YAML::Node& node, const std::string& section, VolumeOptio
                  std::vector<std::string>* warnings) {
   Section s(node, section);
   s.get("grid_scale", &o->grid_scale);
-  std::string contrast = o->contrast == Contrast::kVariance ? "variance" : "density_per_vote";
+  std::string contrast = contrastName(o->contrast);
   s.get("contrast", &contrast);
-  if (contrast == "variance")
+  if (contrast == contrastName(Contrast::kVariance))
     o->contrast = Contrast::kVariance;
-  else if (contrast == "density_per_vote")
+  else if (contrast == contrastName(Contrast::kDensityPerVote))
     o->contrast = Contrast::kDensityPerVote;
   else
-    throw std::invalid_argument(section + ".contrast: '" + contrast + "' is neither variance nor density_per_vote");
+    throw std::invalid_argument(section + ".contrast: '" + contrast +
+                                "' is neither variance nor density_per_vote");
   s.get("margin_px", &o->margin_px);
   s.get("num_planes", &o->num_planes);
   s.get("z_min_m", &o->z_min_m);

@@ -11,6 +11,10 @@ constexpr int kPlaneGroup = 4;         // planes voted per pass over a large ray
 constexpr int kSensitivityChunks = 4;  // plane chunks of contrastOfRays()
 }  // namespace
 
+const char* contrastName(Contrast contrast) {
+  return contrast == Contrast::kVariance ? "variance" : "density_per_vote";
+}
+
 void VolumeOptions::validate() const {
   auto fail = [](const std::string& m) { throw std::invalid_argument("VolumeOptions: " + m); };
   if (!(grid_scale > 0.05 && grid_scale <= 2.0)) fail("grid_scale must be in (0.05, 2]");

@@ -73,12 +73,12 @@ void BackendNode::readParameters() {
   const BackendOptions& b = backend_options_;
   ROS_INFO(
       "backend_node: config %s, calibration %s; spline degree %d, knots every %.2f s, window "
-      "%.1f s refined every %.1f s, volumes every %.2f s over %.2f s with <= %zu events, %d "
-      "iterations; odom at %.1f Hz, reset after a %.1f s gap, tf %d",
+      "%.1f s refined every %.1f s, volumes every %.2f s over %.2f s with <= %zu events, "
+      "contrast %s, %d iterations; odom at %.1f Hz, reset after a %.1f s gap, tf %d",
       o.config_path.c_str(),
       o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(), b.degree,
       b.knot_spacing_s, b.window_s, b.update_interval_s, b.tau1_s, b.tau2_s,
-      b.max_events_per_volume, b.max_iterations, o.odom_rate_hz, o.max_gap_s, o.publish_tf);
+      b.max_events_per_volume, contrastName(b.volume.contrast), b.max_iterations, o.odom_rate_hz, o.max_gap_s, o.publish_tf);
 }
 
 // ------------------------------------------------------------------------------------------------

@@ -106,13 +106,13 @@ void FrontendNode::readParameters() {
       o.use_imu, o.max_queue_packets, o.max_latency_s);
   ROS_INFO(
       "frontend_node: windows of %s, %zu events per volume, %d planes in [%.2f, %.2f] m at grid "
-      "scale %.2f, "
+      "scale %.2f, contrast %s, "
       "scan +-%.2f rad/s (full +-%.2f), standstill below %.0f ev/s, gyro prior %d",
       f.window_by_count
           ? (std::to_string(f.window_events) + " events").c_str()
           : (std::to_string(int(std::lround(f.window_duration_s * 1000))) + " ms").c_str(),
       f.max_events_per_volume, f.volume.num_planes, f.volume.z_min_m, f.volume.z_max_m,
-      f.volume.grid_scale, f.scan_half_range_rad_s, f.omega_max_rad_s, f.standstill_event_rate_hz,
+      f.volume.grid_scale, contrastName(f.volume.contrast), f.scan_half_range_rad_s, f.omega_max_rad_s, f.standstill_event_rate_hz,
       f.use_gyro_prior);
 }
 

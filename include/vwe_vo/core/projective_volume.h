@@ -23,6 +23,8 @@ namespace vwe_vo {
 ///    the grid there): as sharp as the variance for a fixed set of votes, but votes that leave
 ///    or enter the grid do not change it unless they are more or less focused than the rest.
 enum class Contrast { kVariance, kDensityPerVote };
+/// The YAML name of a Contrast: "variance" or "density_per_vote".
+const char* contrastName(Contrast contrast);
 
 struct VolumeOptions {
   double grid_scale = 0.5;   // grid resolution relative to the sensor (0.5 = half resolution)
