@@ -75,26 +75,28 @@ double bruteForceContrast(const ProjectiveVolume& volume, Contrast contrast, dou
 
 TEST(VweObjective, ContrastFromClearingEqualsBruteForce) {
   const CameraModel cam(testCalibration());
-  for (Contrast contrast : {Contrast::kVariance, Contrast::kDensityPerVote})
-  for (int threads : {1, 2}) {
-    ProjectiveVolume volume(volumeOptions(threads, contrast), cam.width(), cam.height(), 250, 250, 173, 130);
-    VweObjective obj(cam, &volume);
-    const YawForwardModel truth(0.5, 0.4);
-    // Sparse votes (clear() visits the votes) and dense ones (clear() sweeps whole planes).
-    for (int n : {3000, 400000}) {
-      const EventVector ev = makeEvents(cam, truth, n, 1);
-      const double from_clear = obj.evaluate(ev, truth).contrast;
-      for (float v : volume.data()) ASSERT_EQ(v, 0.0f);
-      const VweEvaluation e = obj.voteOnly(ev, truth);
-      double s = 0;
-      const double brute = bruteForceContrast(volume, contrast, &s);
-      EXPECT_NEAR(from_clear, brute, 1e-6 * brute) << n << " events, " << threads << " threads";
-      // (The density divides by the exact vote count, the brute force by the grid's float sum.)
-      EXPECT_NEAR(e.contrast, brute, (contrast == Contrast::kVariance ? 1e-9 : 1e-6) * brute);
-      EXPECT_NEAR(s, double(e.votes), 1e-4 * s);  // bilinear weights sum to one per vote
-      EXPECT_GT(e.votes, size_t(n) * 10);
-      EXPECT_NEAR(volume.clear(obj.lastRays()), brute, 1e-6 * brute);
-      for (float v : volume.data()) ASSERT_EQ(v, 0.0f);
+  for (Contrast contrast : {Contrast::kVariance, Contrast::kDensityPerVote}) {
+    for (int threads : {1, 2}) {
+      ProjectiveVolume volume(volumeOptions(threads, contrast), cam.width(), cam.height(), 250, 250,
+                              173, 130);
+      VweObjective obj(cam, &volume);
+      const YawForwardModel truth(0.5, 0.4);
+      // Sparse votes (clear() visits the votes) and dense ones (clear() sweeps whole planes).
+      for (int n : {3000, 400000}) {
+        const EventVector ev = makeEvents(cam, truth, n, 1);
+        const double from_clear = obj.evaluate(ev, truth).contrast;
+        for (float v : volume.data()) ASSERT_EQ(v, 0.0f);
+        const VweEvaluation e = obj.voteOnly(ev, truth);
+        double s = 0;
+        const double brute = bruteForceContrast(volume, contrast, &s);
+        EXPECT_NEAR(from_clear, brute, 1e-6 * brute) << n << " events, " << threads << " threads";
+        // (The density divides by the exact vote count, the brute force by the grid's float sum.)
+        EXPECT_NEAR(e.contrast, brute, (contrast == Contrast::kVariance ? 1e-9 : 1e-6) * brute);
+        EXPECT_NEAR(s, double(e.votes), 1e-4 * s);  // bilinear weights sum to one per vote
+        EXPECT_GT(e.votes, size_t(n) * 10);
+        EXPECT_NEAR(volume.clear(obj.lastRays()), brute, 1e-6 * brute);
+        for (float v : volume.data()) ASSERT_EQ(v, 0.0f);
+      }
     }
   }
 }
@@ -102,22 +104,23 @@ TEST(VweObjective, ContrastFromClearingEqualsBruteForce) {
 TEST(VweObjective, GradientMatchesCentralFiniteDifferences) {
   const CameraModel cam(testCalibration());
   for (Contrast contrast : {Contrast::kVariance, Contrast::kDensityPerVote}) {
-  ProjectiveVolume volume(volumeOptions(2, contrast), cam.width(), cam.height(), 250, 250, 173, 130);
-  VweObjective obj(cam, &volume);
-  const EventVector ev = makeEvents(cam, YawForwardModel(0.5, 0.4), 4000, 2);
-  for (double w : {0.3, 0.45, 0.7}) {
-    YawForwardModel m(w, 0.4);
-    Eigen::VectorXd g;
-    obj.evaluate(ev, m, &g);
-    for (int k = 0; k < 2; ++k) {
-      const double h = 1e-4;
-      YawForwardModel mp = m, mm = m;
-      (k == 0 ? mp.w_ : mp.v_) += h;
-      (k == 0 ? mm.w_ : mm.v_) -= h;
-      const double fd = (obj.evaluate(ev, mp).contrast - obj.evaluate(ev, mm).contrast) / (2 * h);
-      EXPECT_NEAR(g[k], fd, 5e-3 * std::abs(fd) + 1e-9) << "param " << k << " at w=" << w;
+    ProjectiveVolume volume(volumeOptions(2, contrast), cam.width(), cam.height(), 250, 250, 173,
+                            130);
+    VweObjective obj(cam, &volume);
+    const EventVector ev = makeEvents(cam, YawForwardModel(0.5, 0.4), 4000, 2);
+    for (double w : {0.3, 0.45, 0.7}) {
+      YawForwardModel m(w, 0.4);
+      Eigen::VectorXd g;
+      obj.evaluate(ev, m, &g);
+      for (int k = 0; k < 2; ++k) {
+        const double h = 1e-4;
+        YawForwardModel mp = m, mm = m;
+        (k == 0 ? mp.w_ : mp.v_) += h;
+        (k == 0 ? mm.w_ : mm.v_) -= h;
+        const double fd = (obj.evaluate(ev, mp).contrast - obj.evaluate(ev, mm).contrast) / (2 * h);
+        EXPECT_NEAR(g[k], fd, 5e-3 * std::abs(fd) + 1e-9) << "param " << k << " at w=" << w;
+      }
     }
-  }
   }
 }
 
@@ -129,7 +132,8 @@ TEST(VweObjective, UnfocusedVotesRaiseTheVarianceButNotTheDensityPerVote) {
   const YawForwardModel truth(0.5, 0.4);
   const EventVector ev = makeEvents(cam, truth, 4000, 5);
   for (Contrast contrast : {Contrast::kVariance, Contrast::kDensityPerVote}) {
-    ProjectiveVolume volume(volumeOptions(1, contrast), cam.width(), cam.height(), 250, 250, 173, 130);
+    ProjectiveVolume volume(volumeOptions(1, contrast), cam.width(), cam.height(), 250, 250, 173,
+                            130);
     VweObjective obj(cam, &volume);
     obj.voteOnly(ev, truth);
     const std::vector<VolumeRay> focused = obj.lastRays();
@@ -137,7 +141,8 @@ TEST(VweObjective, UnfocusedVotesRaiseTheVarianceButNotTheDensityPerVote) {
     // As many rays again, each through its own random pixel: they meet nothing.
     std::vector<VolumeRay> more = focused;
     std::mt19937 rng(7);
-    std::uniform_real_distribution<float> u(0.0f, float(volume.width() - 1)), v(0.0f, float(volume.height() - 1));
+    std::uniform_real_distribution<float> u(0.0f, float(volume.width() - 1)),
+        v(0.0f, float(volume.height() - 1));
     for (VolumeRay r : focused) {
       r.u0 = u(rng);
       r.v0 = v(rng);
