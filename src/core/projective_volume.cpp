@@ -9,6 +9,9 @@ namespace vwe_vo {
 namespace {
 constexpr int kPlaneGroup = 4;         // planes voted per pass over a large ray array
 constexpr int kSensitivityChunks = 4;  // plane chunks of contrastOfRays()
+// A plane with more than 1/this votes per voxel is zeroed by a sweep (a fill streams a plane
+// much faster than the votes can be revisited), otherwise by revisiting its votes.
+constexpr size_t kZeroSweepVotesPerVoxel = 64;
 }  // namespace
 
 const char* contrastName(Contrast contrast) {
@@ -161,6 +164,26 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
     for (int l = l0; l < l1; ++l) {
       const float rho = float(rho_[l]);
       size_t n = 0;
+      if (!sensitivities) {
+        // The sum of squares is gathered while voting: adding w to a voxel that holds V adds
+        // w (2 V + w) to sum V^2. Afterwards the plane only needs zeroing.
+        double q0 = 0.0, q1 = 0.0;
+        for (const VolumeRay& r : rays)
+          forEachPlaneVote(r, rho, [&](size_t idx, float ax, float ay) {
+            float* c0 = g + idx;
+            float* c1 = c0 + W;
+            const float w00 = (1 - ax) * (1 - ay), w10 = ax * (1 - ay), w01 = (1 - ax) * ay, w11 = ax * ay;
+            const float v00 = c0[0], v10 = c0[1], v01 = c1[0], v11 = c1[1];
+            q0 += double(w00 * (2 * v00 + w00) + w10 * (2 * v10 + w10));
+            q1 += double(w01 * (2 * v01 + w01) + w11 * (2 * v11 + w11));
+            c0[0] = v00 + w00, c0[1] = v10 + w10, c1[0] = v01 + w01, c1[1] = v11 + w11;
+            ++n;
+          });
+        plane_counts_[size_t(l)] = n;
+        plane_squares_[size_t(l)] = q0 + q1;
+        zeroPlane(g, rays, rho, n);
+        continue;
+      }
       for (const VolumeRay& r : rays)
         forEachPlaneVote(r, rho, [&](size_t idx, float ax, float ay) {
           g[idx] += (1 - ax) * (1 - ay);
@@ -170,10 +193,6 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
           ++n;
         });
       plane_counts_[size_t(l)] = n;
-      if (!sensitivities) {
-        plane_squares_[size_t(l)] = takeSquares(g, rays, rho, 4 * n >= plane_voxels);
-        continue;
-      }
       // d(sum_c V_c w_c)/du and /dv for the bilinear weights w_c(ax, ay). The mean of the
       // volume drops out: the weights' derivatives sum to zero. The same reads give the sum of
       // squares: sum_voxels V^2 = sum_votes sum_c w_c V_c (every V is the sum of its votes' w).
@@ -190,14 +209,7 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
           acc[i] += Eigen::Vector4d(gu, gu * drho, gv, gv * drho);
         });
       plane_squares_[size_t(l)] = q;
-      if (4 * n >= plane_voxels) {
-        std::fill(g, g + plane_voxels, 0.0f);
-      } else {
-        for (const VolumeRay& r : rays)
-          forEachPlaneVote(r, rho, [&](size_t idx, float, float) {
-            g[idx] = g[idx + 1] = g[idx + W] = g[idx + W + 1] = 0.0f;
-          });
-      }
+      zeroPlane(g, rays, rho, n);
     }
   });
   size_t n = 0;
@@ -214,6 +226,18 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
     for (Eigen::Vector4d& s : *sensitivities) s *= scale;
   }
   return contrastOf(q, double(n));
+}
+
+void ProjectiveVolume::zeroPlane(float* plane, const std::vector<VolumeRay>& rays, float rho, size_t votes) const {
+  const size_t W = size_t(width_), plane_voxels = W * height_;
+  if (kZeroSweepVotesPerVoxel * votes >= plane_voxels) {
+    std::fill(plane, plane + plane_voxels, 0.0f);
+    return;
+  }
+  for (const VolumeRay& r : rays)
+    forEachPlaneVote(r, rho, [&](size_t idx, float, float) {
+      plane[idx] = plane[idx + 1] = plane[idx + W] = plane[idx + W + 1] = 0.0f;
+    });
 }
 
 double ProjectiveVolume::takeSquares(float* plane, const std::vector<VolumeRay>& rays, float rho,

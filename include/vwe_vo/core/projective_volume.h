@@ -105,6 +105,9 @@ class ProjectiveVolume {
   /// Sum of squares of a plane's voxels, zeroing them: by a sweep over the plane (when the votes
   /// cover a quarter of it anyway), otherwise by visiting the rays' votes.
   double takeSquares(float* plane, const std::vector<VolumeRay>& rays, float rho, bool sweep) const;
+  /// Zeroes a scratch plane after `votes` votes of the rays: by a fill when they are many,
+  /// otherwise by revisiting them.
+  void zeroPlane(float* plane, const std::vector<VolumeRay>& rays, float rho, size_t votes) const;
 
   VolumeOptions options_;
   int width_, height_;
