@@ -684,11 +684,14 @@ void BSplineCameraModel::addPlanarGradient(const std::vector<int64_t>& t_ns, con
   double G_psi = 0.0, H = 0.0;
   Vec2 G_p = Vec2::Zero();
   PlanarPoseJacobian jac_t;
-  for (size_t i = 0; i < t_ns.size(); ++i) {
+  for (size_t i = 0; i < t_ns.size();) {
+    // Rays of one time (a pose slice of the objective) share the pose: their sum is chained once.
+    double g_psi = 0.0;
+    Vec2 g_p = Vec2::Zero();
+    const int64_t t = t_ns[i];
+    for (; i < t_ns.size() && t_ns[i] == t; ++i) g_psi += g[i].x(), g_p += g[i].tail<2>();
     double dpsi = 0.0;
-    const Vec2 p_rel = relativePose(ref, t_ns[i], &dpsi, &jac_t);
-    const double g_psi = g[i].x();
-    const Vec2 g_p = g[i].tail<2>();
+    const Vec2 p_rel = relativePose(ref, t, &dpsi, &jac_t);
     const Vec2 g_odom = R_r * g_p;  // g_p . (R_r^T dp) = (R_r g_p) . dp
     for (int s = 0; s < jac_t.size; ++s)
       (*gradient)[jac_t.index[s]] += g_psi * jac_t.dpsi[s] + g_odom.dot(jac_t.dp[s]);

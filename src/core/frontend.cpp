@@ -97,6 +97,7 @@ void FrontendOptions::validate() const {
   if (!(full_scan_step_rad_s >= scan_step_rad_s && full_scan_step_rad_s <= omega_max_rad_s))
     fail("full_scan_step_rad_s must be in [scan_step_rad_s, omega_max_rad_s]");
   if (full_scan_candidates < 1) fail("full_scan_candidates must be at least 1");
+  if (full_scan_max_events > 0 && full_scan_max_events < 100) fail("full_scan_max_events must be 0 (all) or at least 100");
   if (!(refine_tolerance_rad_s > 0 && refine_tolerance_rad_s < scan_step_rad_s)) fail("refine_tolerance_rad_s must be in (0, scan_step_rad_s)");
   if (!(standstill_event_rate_hz >= 0)) fail("standstill_event_rate_hz must be >= 0");
   if (!(standstill_speed_mps >= 0)) fail("standstill_speed_mps must be >= 0");
@@ -294,17 +295,48 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   // between coarse points losing to a broad one).
   auto fullScan = [&] {
     const double coarse = std::max(step, options_.full_scan_step_rad_s);
-    scan(std::max(-wmax, setup.rescan_lo_rad_s), std::min(wmax, setup.rescan_hi_rad_s), coarse);
+    const double lo = std::max(-wmax, setup.rescan_lo_rad_s), hi = std::min(wmax, setup.rescan_hi_rad_s);
+    // The coarse grid only has to find the basins, so with many events it votes every k-th of
+    // them (full_scan_max_events). Its values are then on another scale (the density grows
+    // with the events) and stay out of f_of_w; the full set is evaluated at its lowest point,
+    // which the confidence needs.
+    const size_t max_coarse = options_.full_scan_max_events;
+    const bool thin = max_coarse > 0 && events.size() > max_coarse;
+    std::map<double, double> thinned_f;
+    if (thin) {
+      const size_t k = (events.size() + max_coarse - 1) / max_coarse;
+      EventVector few;
+      few.reserve(events.size() / k + 1);
+      for (size_t i = 0; i < events.size(); i += k) few.push_back(events[i]);
+      const int n = std::max(2, int(std::ceil((hi - lo) / coarse - 1e-9)) + 1);
+      std::vector<double> ws(static_cast<size_t>(n));
+      for (int i = 0; i < n; ++i) ws[size_t(i)] = lo + (hi - lo) * i / (n - 1);
+      const std::vector<double> fs = contrasts(few, t_ref_ns, ws, v, setup.deep_planes);
+      for (size_t i = 0; i < ws.size(); ++i) thinned_f[ws[i]] = fs[i];
+      arc.evaluations += int(ws.size());
+    } else {
+      scan(lo, hi, coarse);
+    }
+    const std::map<double, double>& grid = thin ? thinned_f : f_of_w;
     std::vector<std::pair<double, double>> maxima;  // (f, omega)
-    for (auto it = f_of_w.begin(); it != f_of_w.end(); ++it) {
+    for (auto it = grid.begin(); it != grid.end(); ++it) {
       const auto next = std::next(it);
-      const bool left_lower = it == f_of_w.begin() || std::prev(it)->second <= it->second;
-      const bool right_lower = next == f_of_w.end() || next->second <= it->second;
+      const bool left_lower = it == grid.begin() || std::prev(it)->second <= it->second;
+      const bool right_lower = next == grid.end() || next->second <= it->second;
       if (left_lower && right_lower) maxima.emplace_back(it->second, it->first);
     }
     std::sort(maxima.rbegin(), maxima.rend());
     const size_t k = std::min(maxima.size(), size_t(options_.full_scan_candidates));
     for (size_t i = 0; i < k; ++i) scan(maxima[i].second - coarse, maxima[i].second + coarse, step);
+    if (thin) {
+      const double w_min = std::min_element(grid.begin(), grid.end(), [](const auto& p, const auto& q) {
+                             return p.second < q.second;
+                           })->first;
+      if (!covered(w_min)) {
+        f_of_w[w_min] = contrast(events, t_ref_ns, w_min, v, setup.deep_planes);
+        ++arc.evaluations;
+      }
+    }
   };
   std::pair<double, double> range;
   if (center - half_range <= -wmax && center + half_range >= wmax) {

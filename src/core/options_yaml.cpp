@@ -76,6 +76,7 @@ void loadOptions(const YAML::Node& node, const std::string& section, VolumeOptio
   s.get("z_min_m", &o->z_min_m);
   s.get("z_max_m", &o->z_max_m);
   s.get("num_threads", &o->num_threads);
+  s.get("pose_slice_s", &o->pose_slice_s);
   s.reportUnknown(warnings);
   o->validate();
 }
@@ -97,6 +98,7 @@ void loadOptions(const YAML::Node& node, const std::string& section, FrontendOpt
   s.get("scan_step_rad_s", &o->scan_step_rad_s);
   s.get("full_scan_step_rad_s", &o->full_scan_step_rad_s);
   s.get("full_scan_candidates", &o->full_scan_candidates);
+  s.get("full_scan_max_events", &o->full_scan_max_events);
   s.get("refine_tolerance_rad_s", &o->refine_tolerance_rad_s);
   s.get("standstill_event_rate_hz", &o->standstill_event_rate_hz);
   s.get("standstill_speed_mps", &o->standstill_speed_mps);

@@ -26,6 +26,7 @@ void VolumeOptions::validate() const {
   if (!(z_min_m > 0)) fail("z_min_m must be positive");
   if (!(z_max_m > z_min_m)) fail("z_max_m must be larger than z_min_m");
   if (num_threads < 1 || num_threads > 64) fail("num_threads must be in [1, 64]");
+  if (!(pose_slice_s >= 0 && pose_slice_s <= 0.01)) fail("pose_slice_s must be in [0, 0.01]");
 }
 
 bool makeVolumeRay(const Vec3& o, const Vec3& d, double fx, double fy, double cx, double cy, VolumeRay* ray) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace vwe_vo {
 
@@ -70,13 +71,27 @@ void VweObjective::buildChunk(const EventVector& events, size_t begin, size_t en
   const bool planar = with_jacobian && model.hasPlanarJacobian();
   PoseJacobian& pj = out->pose_jac;
   PlanarLocalJacobian lj;
+  // The pose of a slice is computed once; slices lie on a fixed grid of absolute times, so the
+  // result does not depend on how the events are chunked.
+  const int64_t slice = secToNs(volume_->options().pose_slice_s);
+  int64_t pose_t = std::numeric_limits<int64_t>::min();
+  Pose3 T = Pose3::Identity();
   for (size_t k = begin; k < end; ++k) {
     const PixelEvent& e = events[k];
     if (!model.covers(e.t_ns)) {
       ++out->skipped_time;
       continue;
     }
-    const Pose3 T = planar ? model.T_Cr_CtPlanar(e.t_ns, &lj) : model.T_Cr_Ct(e.t_ns, with_jacobian ? &pj : nullptr);
+    int64_t t = e.t_ns;
+    if (slice > 1) {
+      const int64_t start = t - ((t % slice) + slice) % slice;
+      t = start + slice / 2;
+      if (!model.covers(t)) t = e.t_ns;  // the model ends inside this slice
+    }
+    if (t != pose_t) {
+      T = planar ? model.T_Cr_CtPlanar(t, &lj) : model.T_Cr_Ct(t, with_jacobian ? &pj : nullptr);
+      pose_t = t;
+    }
     const Vec3 f = camera_.bearing(e.x, e.y).cast<double>();
     const Vec3 o = T.translation();
     const Vec3 d = T.linear() * f;
@@ -90,7 +105,7 @@ void VweObjective::buildChunk(const EventVector& events, size_t begin, size_t en
     const double ax = d.x() / d.z(), ay = d.y() / d.z();
     if (planar) {
       // Three derivatives per ray (psi, x, y); the model chains them to its parameters.
-      out->times.push_back(e.t_ns);
+      out->times.push_back(t);
       out->jac_value.push_back(rayDerivative(o, d, ax, ay, lj.dR_dpsi * f, lj.dt_dpsi, fx, fy));
       out->jac_value.push_back(rayDerivative(o, d, ax, ay, Vec3::Zero(), lj.dt_dx, fx, fy));
       out->jac_value.push_back(rayDerivative(o, d, ax, ay, Vec3::Zero(), lj.dt_dy, fx, fy));

@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <string>
+#include <tuple>
 
 #include "../common/synthetic_events.h"
 #include "vwe_vo/core/backend.h"
@@ -121,8 +123,10 @@ double headingChangeError(const BSpline& est, const BSpline& truth, double u0, d
 /// geometry, the contrast per volume (VolumeOptions::contrast), summed. The kernel votes in
 /// float, whose rounding is larger than the change a step of 1e-7 m makes: central differences
 /// are taken of this reference.
+/// slice_ns > 0: every event takes the pose at the middle of its slice of that length on the
+/// grid of absolute times (VolumeOptions::pose_slice_s), unless the spline ends before it.
 double referenceObjective(const CameraModel& cam, const ProjectiveVolume& volume, const BSpline& spline,
-                          const std::vector<BackendVolume>& volumes) {
+                          const std::vector<BackendVolume>& volumes, int64_t slice_ns) {
   const int W = volume.width(), H = volume.height(), L = volume.numPlanes();
   std::vector<double> grid(size_t(W) * H * L);
   double total = 0.0;
@@ -131,7 +135,12 @@ double referenceObjective(const CameraModel& cam, const ProjectiveVolume& volume
     const BSplineCameraModel model(std::make_shared<BSpline>(spline), testExtrinsics(), bv.t_ref_ns);
     for (const PixelEvent& e : bv.events) {
       if (!model.covers(e.t_ns)) continue;
-      const Pose3 T = model.T_Cr_Ct(e.t_ns);
+      int64_t t = e.t_ns;
+      if (slice_ns > 0) {
+        const int64_t middle = (e.t_ns / slice_ns) * slice_ns + slice_ns / 2;  // times are positive
+        if (model.covers(middle)) t = middle;
+      }
+      const Pose3 T = model.T_Cr_Ct(t);
       const Vec3 o = T.translation(), d = T.linear() * cam.bearing(e.x, e.y).cast<double>();
       if (!(d.z() > 1e-9)) continue;
       for (int l = 0; l < L; ++l) {
@@ -160,7 +169,8 @@ double referenceObjective(const CameraModel& cam, const ProjectiveVolume& volume
 
 }  // namespace
 
-class BackendContrast : public ::testing::TestWithParam<Contrast> {};
+/// (contrast, pose slice [s]): the gradient of the exact per-event objective and of the sliced one.
+class BackendContrast : public ::testing::TestWithParam<std::tuple<Contrast, double>> {};
 
 TEST_P(BackendContrast, MultiVolumeGradientMatchesCentralFiniteDifferences) {
   Scene sc(kFdEvents, 1.6, 0.45, 4000);
@@ -170,7 +180,9 @@ TEST_P(BackendContrast, MultiVolumeGradientMatchesCentralFiniteDifferences) {
   VolumeOptions vo = testOptions().volume;
   vo.margin_px = 100;
   vo.num_threads = 2;
-  vo.contrast = GetParam();
+  vo.contrast = std::get<0>(GetParam());
+  vo.pose_slice_s = std::get<1>(GetParam());
+  const int64_t slice_ns = secToNs(vo.pose_slice_s);
   VweObjectivePool vwe(sc.cam, vo);
   const ProjectiveVolume& volume = vwe.volume();
   // A perturbed copy of the truth, three volumes around the middle.
@@ -205,7 +217,7 @@ TEST_P(BackendContrast, MultiVolumeGradientMatchesCentralFiniteDifferences) {
   }
   // The kernel's value is the reference's up to float rounding.
   obj.evaluate(x0, nullptr);
-  const double f0_ref = referenceObjective(sc.cam, volume, *spline, volumes);
+  const double f0_ref = referenceObjective(sc.cam, volume, *spline, volumes, slice_ns);
   EXPECT_NEAR(f0, f0_ref, 1e-5 * f0_ref);
   // Central differences of the reference (the bilinear kernel is piecewise smooth: a step this
   // small crosses few voxel borders).
@@ -216,9 +228,9 @@ TEST_P(BackendContrast, MultiVolumeGradientMatchesCentralFiniteDifferences) {
     xp[k] += h;
     xm[k] -= h;
     obj.evaluate(xp, nullptr);
-    const double fp = referenceObjective(sc.cam, volume, *spline, volumes);
+    const double fp = referenceObjective(sc.cam, volume, *spline, volumes, slice_ns);
     obj.evaluate(xm, nullptr);
-    const double fm = referenceObjective(sc.cam, volume, *spline, volumes);
+    const double fm = referenceObjective(sc.cam, volume, *spline, volumes, slice_ns);
     fd[k] = (fp - fm) / (2 * h);
   }
   double max_rel = 0.0;
@@ -238,9 +250,13 @@ TEST_P(BackendContrast, MultiVolumeGradientMatchesCentralFiniteDifferences) {
               sc.truth->controlPoints()[i] + 0.02 * Vec2(std::sin(3.0 * i), std::cos(5.0 * i)));
 }
 
-INSTANTIATE_TEST_SUITE_P(Backend, BackendContrast, ::testing::Values(Contrast::kDensityPerVote, Contrast::kVariance),
-                         [](const ::testing::TestParamInfo<Contrast>& info) {
-                           return info.param == Contrast::kVariance ? "Variance" : "DensityPerVote";
+INSTANTIATE_TEST_SUITE_P(Backend, BackendContrast,
+                         ::testing::Combine(::testing::Values(Contrast::kDensityPerVote, Contrast::kVariance),
+                                            ::testing::Values(0.0, 0.0005)),
+                         [](const ::testing::TestParamInfo<std::tuple<Contrast, double>>& info) {
+                           return std::string(std::get<0>(info.param) == Contrast::kVariance ? "Variance"
+                                                                                              : "DensityPerVote") +
+                                  (std::get<1>(info.param) > 0 ? "Sliced" : "PerEvent");
                          });
 
 /// The spline model seen only through its full PoseJacobian (the objective's generic path).

@@ -48,6 +48,7 @@ struct FrontendOptions {
   double scan_step_rad_s = 0.03;           // coarse scan step [rad/s]
   double full_scan_step_rad_s = 0.09;      // step of a full-range scan, refined at scan_step_rad_s [rad/s]
   int full_scan_candidates = 2;            // maxima of a full-range scan refined at scan_step_rad_s
+  size_t full_scan_max_events = 2000;      // events the coarse grid of a full-range scan votes (0: all)
   double refine_tolerance_rad_s = 3e-4;    // 1-D refinement stops at this bracket width [rad/s]
   double standstill_event_rate_hz = 30000; // below this event rate the vehicle is standing [ev/s]
   double standstill_speed_mps = 0.03;      // odometry speed below this means standstill [m/s] (0.02: a stopping window, 8 mm moved, came out 5 deg/s off)
