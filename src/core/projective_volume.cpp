@@ -74,7 +74,7 @@ inline void ProjectiveVolume::forEachPlaneVote(const VolumeRay& r, float rho, Fn
 }
 
 template <typename Fn>
-inline void ProjectiveVolume::forEachPlaneVoteBatched(float rho, Fn&& fn) const {
+inline void ProjectiveVolume::forEachPlaneVoteBatched(float rho, size_t begin, size_t end, Fn&& fn) const {
   // The same arithmetic as forEachPlaneVote(), on the rays' columns a batch at a time: the
   // first loop has no branches and vectorises, the second only touches the grid.
   constexpr int kBatch = 64;
@@ -82,14 +82,13 @@ inline void ProjectiveVolume::forEachPlaneVoteBatched(float rho, Fn&& fn) const 
   alignas(64) float ax[kBatch], ay[kBatch];
   const float umax = float(width_ - 1), vmax = float(height_ - 1);
   const int width = width_;
-  const size_t N = soa_.size;
   const float* u0 = soa_.u0.data();
   const float* v0 = soa_.v0.data();
   const float* du = soa_.du.data();
   const float* dv = soa_.dv.data();
   const float* rho_max = soa_.rho_max.data();
-  for (size_t b = 0; b < N; b += kBatch) {
-    const int m = int(std::min<size_t>(kBatch, N - b));
+  for (size_t b = begin; b < end; b += kBatch) {
+    const int m = int(std::min<size_t>(kBatch, end - b));
     for (int k = 0; k < m; ++k) {
       const float u = u0[b + k] + rho * du[b + k], v = v0[b + k] + rho * dv[b + k];
       const bool in = (rho < rho_max[b + k]) & (u >= 0.0f) & (v >= 0.0f) & (u < umax) & (v < vmax);
@@ -135,23 +134,25 @@ size_t ProjectiveVolume::vote(const std::vector<VolumeRay>& rays) {
   const int group = many_rays ? kPlaneGroup : 1;
   const int num_groups = (L + group - 1) / group;
   plane_counts_.assign(size_t(num_groups), 0);
+  soa_.assign(rays);
+  const size_t N = rays.size(), plane_voxels = W * height_;
   pool_.run(num_groups, [&](int chunk, int) {
     const int l0 = chunk * group, l1 = std::min(L, l0 + group);
     size_t n = 0;
-    // Only the four read-modify-writes per vote: the sum of squares is gathered by clear().
-    auto add = [&](size_t idx, float ax, float ay) {
-      g[idx] += (1 - ax) * (1 - ay);
-      g[idx + 1] += ax * (1 - ay);
-      g[idx + W] += (1 - ax) * ay;
-      g[idx + W + 1] += ax * ay;
-      ++n;
-    };
-    if (group == 1) {
-      for (const VolumeRay& r : rays) forEachVote(r, l0, add);
-    } else {
-      for (const VolumeRay& r : rays)
-        for (int l = l0; l < l1; ++l) forEachVote(r, l, add);
-    }
+    // A block of rays serves the group's planes while its columns are in cache. Only the four
+    // read-modify-writes per vote: the sum of squares is gathered by clear().
+    constexpr size_t kBlock = 1024;
+    for (size_t b = 0; b < N; b += kBlock)
+      for (int l = l0; l < l1; ++l) {
+        float* plane = g + size_t(l) * plane_voxels;
+        forEachPlaneVoteBatched(float(rho_[l]), b, std::min(N, b + kBlock), [&](size_t, size_t idx, float ax, float ay) {
+          plane[idx] += (1 - ax) * (1 - ay);
+          plane[idx + 1] += ax * (1 - ay);
+          plane[idx + W] += (1 - ax) * ay;
+          plane[idx + W + 1] += ax * ay;
+          ++n;
+        });
+      }
     plane_counts_[size_t(chunk)] = n;
   });
   size_t votes = 0;
@@ -201,7 +202,7 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
         // The sum of squares is gathered while voting: adding w to a voxel that holds V adds
         // w (2 V + w) to sum V^2. Afterwards the plane only needs zeroing.
         double q0 = 0.0, q1 = 0.0;
-        forEachPlaneVoteBatched(rho, [&](size_t, size_t idx, float ax, float ay) {
+        forEachPlaneVoteBatched(rho, 0, soa_.size, [&](size_t, size_t idx, float ax, float ay) {
             float* c0 = g + idx;
             float* c1 = c0 + W;
             const float w00 = (1 - ax) * (1 - ay), w10 = ax * (1 - ay), w01 = (1 - ax) * ay, w11 = ax * ay;
@@ -216,7 +217,7 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
         zeroPlane(g, rho, n);
         continue;
       }
-      forEachPlaneVoteBatched(rho, [&](size_t, size_t idx, float ax, float ay) {
+      forEachPlaneVoteBatched(rho, 0, soa_.size, [&](size_t, size_t idx, float ax, float ay) {
         g[idx] += (1 - ax) * (1 - ay);
         g[idx + 1] += ax * (1 - ay);
         g[idx + W] += (1 - ax) * ay;
@@ -230,7 +231,7 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
       Eigen::Vector4d* acc = chunk_sens_[size_t(c)].data();
       const double drho = rho_[l];
       double q = 0.0;
-      forEachPlaneVoteBatched(rho, [&](size_t i, size_t idx, float ax, float ay) {
+      forEachPlaneVoteBatched(rho, 0, soa_.size, [&](size_t i, size_t idx, float ax, float ay) {
           const float v00 = g[idx], v10 = g[idx + 1], v01 = g[idx + W], v11 = g[idx + W + 1];
           const float top = v00 + (v10 - v00) * ax, bottom = v01 + (v11 - v01) * ax;
           q += double(top + (bottom - top) * ay);
@@ -264,7 +265,7 @@ void ProjectiveVolume::zeroPlane(float* plane, float rho, size_t votes) const {
     std::fill(plane, plane + plane_voxels, 0.0f);
     return;
   }
-  forEachPlaneVoteBatched(rho, [&](size_t, size_t idx, float, float) {
+  forEachPlaneVoteBatched(rho, 0, soa_.size, [&](size_t, size_t idx, float, float) {
     plane[idx] = plane[idx + 1] = plane[idx + W] = plane[idx + W + 1] = 0.0f;
   });
 }
@@ -278,8 +279,7 @@ void ProjectiveVolume::RayColumns::assign(const std::vector<VolumeRay>& rays) {
   }
 }
 
-double ProjectiveVolume::takeSquares(float* plane, const std::vector<VolumeRay>& rays, float rho,
-                                     bool sweep) const {
+double ProjectiveVolume::takeSquares(float* plane, float rho, bool sweep) const {
   const size_t W = size_t(width_), plane_voxels = W * height_;
   if (sweep) {
     // Dense votes: one sweep over the plane.
@@ -295,14 +295,13 @@ double ProjectiveVolume::takeSquares(float* plane, const std::vector<VolumeRay>&
   }
   // Sparse votes: visit what they touched; a voxel met twice is zero the second time.
   double q0 = 0.0, q1 = 0.0;
-  for (const VolumeRay& r : rays)
-    forEachPlaneVote(r, rho, [&](size_t idx, float, float) {
-      float* c0 = plane + idx;
-      float* c1 = c0 + W;
-      q0 += double(c0[0] * c0[0] + c0[1] * c0[1]);
-      q1 += double(c1[0] * c1[0] + c1[1] * c1[1]);
-      c0[0] = c0[1] = c1[0] = c1[1] = 0.0f;
-    });
+  forEachPlaneVoteBatched(rho, 0, soa_.size, [&](size_t, size_t idx, float, float) {
+    float* c0 = plane + idx;
+    float* c1 = c0 + W;
+    q0 += double(c0[0] * c0[0] + c0[1] * c0[1]);
+    q1 += double(c1[0] * c1[0] + c1[1] * c1[1]);
+    c0[0] = c0[1] = c1[0] = c1[1] = 0.0f;
+  });
   return q0 + q1;
 }
 
@@ -312,10 +311,10 @@ double ProjectiveVolume::clear(const std::vector<VolumeRay>& rays) {
   const size_t plane_voxels = size_t(width_) * height_;
   const bool dense = 4 * last_votes_ >= numVoxels();
   plane_squares_.assign(size_t(L), 0.0);
+  if (!dense) soa_.assign(rays);
   pool_.run(L, [&](int l, int) {
     // Dense votes: every plane is swept; sparse: takeSquares() visits the votes.
-    plane_squares_[size_t(l)] =
-        takeSquares(grid_.data() + size_t(l) * plane_voxels, rays, float(rho_[l]), dense);
+    plane_squares_[size_t(l)] = takeSquares(grid_.data() + size_t(l) * plane_voxels, float(rho_[l]), dense);
   });
   double q = 0.0;
   for (double p : plane_squares_) q += p;

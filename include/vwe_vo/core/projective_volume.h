@@ -108,15 +108,15 @@ class ProjectiveVolume {
   template <typename Fn>
   void forEachVote(const VolumeRay& r, int l, Fn&& fn) const;
   /// Sum of squares of a plane's voxels, zeroing them: by a sweep over the plane (when the votes
-  /// cover a quarter of it anyway), otherwise by visiting the rays' votes.
-  double takeSquares(float* plane, const std::vector<VolumeRay>& rays, float rho, bool sweep) const;
+  /// cover a quarter of it anyway), otherwise by visiting the votes of the rays in soa_.
+  double takeSquares(float* plane, float rho, bool sweep) const;
   /// Zeroes a scratch plane after `votes` votes of the rays in soa_: by a fill when they are
   /// many, otherwise by revisiting them.
   void zeroPlane(float* plane, float rho, size_t votes) const;
-  /// forEachPlaneVote() over the rays in soa_: fn(ray index, voxel index, ax, ay).
+  /// forEachPlaneVote() over the rays [begin, end) of soa_: fn(ray index, voxel index, ax, ay).
   template <typename Fn>
-  void forEachPlaneVoteBatched(float rho, Fn&& fn) const;
-  /// contrastOfRays()' rays by columns, for forEachPlaneVoteBatched().
+  void forEachPlaneVoteBatched(float rho, size_t begin, size_t end, Fn&& fn) const;
+  /// The rays of contrastOfRays() and vote() by columns, for forEachPlaneVoteBatched().
   struct RayColumns {
     std::vector<float> u0, v0, du, dv, rho_max;
     size_t size = 0;
