@@ -83,25 +83,25 @@ void expectIndoorTargets(const PipelineRun& r, double max_rot_rmse_deg_s) {
 
 }  // namespace
 
-// Measured: back-end 0.180 deg/s against the front-end's 0.275 (34 % lower).
+// Measured: back-end 0.180 deg/s against the front-end's 0.273 (34 % lower).
 TEST(BackendAccuracy, IndoorCircle) { expectIndoorTargets(run("indoor_circle"), 0.3); }
 
-// Measured: 0.224 against 0.357 (37 % lower).
+// Measured: 0.219 against 0.361 (39 % lower).
 TEST(BackendAccuracy, IndoorLongWithStandstill) { expectIndoorTargets(run("indoor_long"), 0.4); }
 
-// Measured: back-end 0.386 deg/s against the front-end's 0.483 (20 % lower), translation
-// direction 0.203 deg/s, scale per 10 m 0.993-1.008. (With the arcs' rates interpolated between
-// their middles for the first fit, as indoors: 0.442, 8 % lower. The bag of make demo, whose
-// /odom and /dvs/imu carry the simulated noise, scale error and bias: 0.380 against 0.473, 20 %
-// lower; the street's ratio moves with such details and with where the windows fall: 12-29 %
-// over bag starts of 0-0.25 s and subsampling seeds 1-3.)
+// Measured: back-end 0.341 deg/s against the front-end's 0.481 (29 % lower), translation
+// direction 0.177 deg/s, scale per 10 m 0.993-1.008. (The bag of make demo, whose /odom and
+// /dvs/imu carry the simulated noise, scale error and bias: 0.349 against 0.474, 26 % lower;
+// 24-26 % over subsampling seeds 1-3. The ratio moves with where the windows fall: 18-28 % over
+// bag starts 0.1-0.25 s late. With the arcs' rates interpolated between their middles for the
+// first fit, as indoors, session 9 measured 8 % here.)
 TEST(BackendAccuracy, StreetLongWithTheCarConfig) {
   // A car at 5-8 m/s with 90-degree turns; config/car.yaml (its mount, one-sided windows with
   // planes from 10 m where the facade is deep enough). The scale comes from the wheel speed: no
   // drift along 250 m.
   const PipelineRun r = run("street_long", "car.yaml");
   EXPECT_EQ(r.nonfinite_poses, 0u);
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.9 * r.frontend.rpe.rot_rmse_deg_s);
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.8 * r.frontend.rpe.rot_rmse_deg_s);
   EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.6);
   EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.3);
   EXPECT_LE(r.backend.ate_percent_of_path, 2.0);
@@ -115,7 +115,7 @@ TEST(BackendAccuracy, StreetLongStartedLate) {
   // deg/s off on straight driving (vwe_vo_offline --start 0.25 on the bag: 2.0 deg/s).
   const PipelineRun r = run("street_long", "car.yaml", 0.25);
   EXPECT_EQ(r.nonfinite_poses, 0u);
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.9 * r.frontend.rpe.rot_rmse_deg_s);  // measured 0.328 vs 0.423
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.9 * r.frontend.rpe.rot_rmse_deg_s);  // measured 0.361 vs 0.439
   EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.6);
   EXPECT_LE(r.backend.ate_percent_of_path, 2.0);
 }
