@@ -97,7 +97,8 @@ void FrontendOptions::validate() const {
   if (!(full_scan_step_rad_s >= scan_step_rad_s && full_scan_step_rad_s <= omega_max_rad_s))
     fail("full_scan_step_rad_s must be in [scan_step_rad_s, omega_max_rad_s]");
   if (full_scan_candidates < 1) fail("full_scan_candidates must be at least 1");
-  if (full_scan_max_events > 0 && full_scan_max_events < 100) fail("full_scan_max_events must be 0 (all) or at least 100");
+  if (full_scan_max_events > 0 && full_scan_max_events < 100)
+    fail("full_scan_max_events must be 0 (all) or at least 100");
   if (!(refine_tolerance_rad_s > 0 && refine_tolerance_rad_s < scan_step_rad_s)) fail("refine_tolerance_rad_s must be in (0, scan_step_rad_s)");
   if (!(standstill_event_rate_hz >= 0)) fail("standstill_event_rate_hz must be >= 0");
   if (!(standstill_speed_mps >= 0)) fail("standstill_speed_mps must be >= 0");

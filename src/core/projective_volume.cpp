@@ -12,6 +12,14 @@ constexpr int kSensitivityChunks = 4;  // plane chunks of contrastOfRays()
 // A plane with more than 1/this votes per voxel is zeroed by a sweep (a fill streams a plane
 // much faster than the votes can be revisited), otherwise by revisiting its votes.
 constexpr size_t kZeroSweepVotesPerVoxel = 64;
+
+/// One bilinear vote at (ix + ax, iy + ay) of a plane W voxels wide, idx = iy * W + ix.
+inline void addVote(float* plane, size_t idx, size_t W, float ax, float ay) {
+  plane[idx] += (1 - ax) * (1 - ay);
+  plane[idx + 1] += ax * (1 - ay);
+  plane[idx + W] += (1 - ax) * ay;
+  plane[idx + W + 1] += ax * ay;
+}
 }  // namespace
 
 const char* contrastName(Contrast contrast) {
@@ -145,11 +153,9 @@ size_t ProjectiveVolume::vote(const std::vector<VolumeRay>& rays) {
     for (size_t b = 0; b < N; b += kBlock)
       for (int l = l0; l < l1; ++l) {
         float* plane = g + size_t(l) * plane_voxels;
-        forEachPlaneVoteBatched(float(rho_[l]), b, std::min(N, b + kBlock), [&](size_t, size_t idx, float ax, float ay) {
-          plane[idx] += (1 - ax) * (1 - ay);
-          plane[idx + 1] += ax * (1 - ay);
-          plane[idx + W] += (1 - ax) * ay;
-          plane[idx + W + 1] += ax * ay;
+        const size_t e = std::min(N, b + kBlock);
+        forEachPlaneVoteBatched(float(rho_[l]), b, e, [&](size_t, size_t idx, float ax, float ay) {
+          addVote(plane, idx, W, ax, ay);
           ++n;
         });
       }
@@ -203,25 +209,22 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
         // w (2 V + w) to sum V^2. Afterwards the plane only needs zeroing.
         double q0 = 0.0, q1 = 0.0;
         forEachPlaneVoteBatched(rho, 0, soa_.size, [&](size_t, size_t idx, float ax, float ay) {
-            float* c0 = g + idx;
-            float* c1 = c0 + W;
-            const float w00 = (1 - ax) * (1 - ay), w10 = ax * (1 - ay), w01 = (1 - ax) * ay, w11 = ax * ay;
-            const float v00 = c0[0], v10 = c0[1], v01 = c1[0], v11 = c1[1];
-            q0 += double(w00 * (2 * v00 + w00) + w10 * (2 * v10 + w10));
-            q1 += double(w01 * (2 * v01 + w01) + w11 * (2 * v11 + w11));
-            c0[0] = v00 + w00, c0[1] = v10 + w10, c1[0] = v01 + w01, c1[1] = v11 + w11;
-            ++n;
-          });
+          float* c0 = g + idx;
+          float* c1 = c0 + W;
+          const float w00 = (1 - ax) * (1 - ay), w10 = ax * (1 - ay), w01 = (1 - ax) * ay, w11 = ax * ay;
+          const float v00 = c0[0], v10 = c0[1], v01 = c1[0], v11 = c1[1];
+          q0 += double(w00 * (2 * v00 + w00) + w10 * (2 * v10 + w10));
+          q1 += double(w01 * (2 * v01 + w01) + w11 * (2 * v11 + w11));
+          c0[0] = v00 + w00, c0[1] = v10 + w10, c1[0] = v01 + w01, c1[1] = v11 + w11;
+          ++n;
+        });
         plane_counts_[size_t(l)] = n;
         plane_squares_[size_t(l)] = q0 + q1;
         zeroPlane(g, rho, n);
         continue;
       }
       forEachPlaneVoteBatched(rho, 0, soa_.size, [&](size_t, size_t idx, float ax, float ay) {
-        g[idx] += (1 - ax) * (1 - ay);
-        g[idx + 1] += ax * (1 - ay);
-        g[idx + W] += (1 - ax) * ay;
-        g[idx + W + 1] += ax * ay;
+        addVote(g, idx, W, ax, ay);
         ++n;
       });
       plane_counts_[size_t(l)] = n;
@@ -232,13 +235,13 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
       const double drho = rho_[l];
       double q = 0.0;
       forEachPlaneVoteBatched(rho, 0, soa_.size, [&](size_t i, size_t idx, float ax, float ay) {
-          const float v00 = g[idx], v10 = g[idx + 1], v01 = g[idx + W], v11 = g[idx + W + 1];
-          const float top = v00 + (v10 - v00) * ax, bottom = v01 + (v11 - v01) * ax;
-          q += double(top + (bottom - top) * ay);
-          const double gu = double((v10 - v00) * (1 - ay) + (v11 - v01) * ay);
-          const double gv = double((v01 - v00) * (1 - ax) + (v11 - v10) * ax);
-          acc[i] += Eigen::Vector4d(gu, gu * drho, gv, gv * drho);
-        });
+        const float v00 = g[idx], v10 = g[idx + 1], v01 = g[idx + W], v11 = g[idx + W + 1];
+        const float top = v00 + (v10 - v00) * ax, bottom = v01 + (v11 - v01) * ax;
+        q += double(top + (bottom - top) * ay);
+        const double gu = double((v10 - v00) * (1 - ay) + (v11 - v01) * ay);
+        const double gv = double((v01 - v00) * (1 - ax) + (v11 - v10) * ax);
+        acc[i] += Eigen::Vector4d(gu, gu * drho, gv, gv * drho);
+      });
       plane_squares_[size_t(l)] = q;
       zeroPlane(g, rho, n);
     }

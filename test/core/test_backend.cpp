@@ -638,6 +638,11 @@ TEST(Backend, OptionsValidateNamesTheField) {
   o.max_line_search_steps = 0;
   expectField(o, "max_line_search_steps");
   o = BackendOptions();
+  o.volume.pose_slice_s = -0.001;
+  expectField(o, "pose_slice_s");
+  o.volume.pose_slice_s = 0.02;
+  expectField(o, "pose_slice_s");
+  o = BackendOptions();
   o.volume.num_planes = 0;
   expectField(o, "num_planes");
   EXPECT_THROW(Backend(o, CameraModel(testCalibration()), testExtrinsics()), std::invalid_argument);

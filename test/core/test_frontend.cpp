@@ -1,6 +1,7 @@
 // Front-end against known arcs: events of random 3D points seen along a constant Ackermann arc.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <random>
 
 #include "../common/synthetic_events.h"
@@ -67,6 +68,18 @@ TEST(Frontend, CoarseToFineFullScanFindsATurnWithFewerEvaluations) {
   EXPECT_LT(a_coarse.evaluations, 0.6 * a_fine.evaluations)
       << a_coarse.evaluations << " vs " << a_fine.evaluations << " evaluations";
   EXPECT_EQ(size_t(a_coarse.evaluations), fe_coarse.stats().evaluations);
+  // The coarse grid votes every 4th event (full_scan_max_events 2000 of 8000): it only picks the
+  // basin, so the arc is the one of the coarse grid on all events, and so is the confidence (its
+  // lowest point is evaluated on all events).
+  FrontendOptions all = coarse;
+  all.full_scan_max_events = 0;
+  ASSERT_EQ(coarse.full_scan_max_events, 2000u);
+  Frontend fe_all(all, camera(), defaultTBaseCam());
+  const ArcEstimate a_all = fe_all.estimateWindow(events, secToNs(5.0), 0.4, 0.0, all.scan_half_range_rad_s);
+  EXPECT_NEAR(a_coarse.omega, a_all.omega, 1e-3);
+  EXPECT_NEAR(a_coarse.confidence, a_all.confidence, 0.1 * a_all.confidence);
+  std::printf("[frontend] full scan: confidence %.4f thinned, %.4f all events; %d / %d evaluations\n",
+              a_coarse.confidence, a_all.confidence, a_coarse.evaluations, a_all.evaluations);
 
   // A rescan bounded as for the halves of a split window (+-10 deg/s here) does not reach the turn:
   // its coarse grid stays in the range, and only the refinement around its best point (by up to
@@ -150,6 +163,13 @@ TEST(Frontend, InvalidOptionsAreRefusedNamingTheField) {
   FrontendOptions o;
   o.window_duration_s = 0;
   expectRefusedNaming(o, "window_duration_s");
+  o = FrontendOptions();
+  o.full_scan_max_events = 50;
+  expectRefusedNaming(o, "full_scan_max_events");
+  o.full_scan_max_events = 0;  // all events
+  EXPECT_NO_THROW(o.validate());
+  o.volume.pose_slice_s = -1e-3;
+  expectRefusedNaming(o, "pose_slice_s");
   o = FrontendOptions();
   o.volume.num_planes = 1;
   EXPECT_THROW(o.validate(), std::invalid_argument);

@@ -35,9 +35,9 @@ struct VolumeOptions {
   double z_max_m = 12.0;     // farthest plane [m]
   int num_threads = 2;       // threads for voting (split over planes)
   // The VWE objective (not the EMVS DSI) evaluates the trajectory, pose and Jacobian, once per
-  // slice of this many seconds, at its middle, for all events in it (0: at each event's time). 0.5 ms moves
-  // the camera 3 mm at 6 m/s and turns it 0.5 mrad at 1 rad/s (0.1 px), and saves most of the
-  // per-event B-spline work.
+  // slice of this many seconds, at its middle, for all events in it (0: at each event's time).
+  // 0.5 ms moves the camera 3 mm at 6 m/s and turns it 0.5 mrad at 1 rad/s (0.1 px), and saves
+  // most of the per-event B-spline work.
   double pose_slice_s = 0.0005;
   void validate() const;     // throws std::invalid_argument naming the field
 };
