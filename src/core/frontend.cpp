@@ -267,25 +267,28 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   // Every evaluated point, by omega: the scans skip points that one already covers, and the
   // refinement brackets the best point by its evaluated neighbours.
   std::map<double, double> f_of_w;
-  auto covered = [&](double w) {
-    const auto it = f_of_w.lower_bound(w - 0.5 * step);
-    return it != f_of_w.end() && it->first <= w + 0.5 * step;
+  auto coveredIn = [&](const std::map<double, double>& f, double w) {
+    const auto it = f.lower_bound(w - 0.5 * step);
+    return it != f.end() && it->first <= w + 0.5 * step;
   };
-  auto scan = [&](double lo, double hi, double scan_step) {
+  auto covered = [&](double w) { return coveredIn(f_of_w, w); };
+  // Evaluates `evs` on a grid over [lo, hi] into f, skipping the points f already covers.
+  auto scanInto = [&](const EventVector& evs, std::map<double, double>& f, double lo, double hi, double scan_step) {
     lo = std::max(lo, -wmax);
     hi = std::min(hi, wmax);
     const int n = std::max(2, int(std::ceil((hi - lo) / scan_step - 1e-9)) + 1);
     std::vector<double> ws;
     for (int i = 0; i < n; ++i) {
       const double w = lo + (hi - lo) * i / (n - 1);
-      if (!covered(w)) ws.push_back(w);
+      if (!coveredIn(f, w)) ws.push_back(w);
     }
     // The points are independent: evaluated in parallel, one per thread.
-    const std::vector<double> fs = contrasts(events, t_ref_ns, ws, v, setup.deep_planes);
-    for (size_t i = 0; i < ws.size(); ++i) f_of_w[ws[i]] = fs[i];
+    const std::vector<double> fs = contrasts(evs, t_ref_ns, ws, v, setup.deep_planes);
+    for (size_t i = 0; i < ws.size(); ++i) f[ws[i]] = fs[i];
     arc.evaluations += int(ws.size());
     return std::make_pair(lo, hi);
   };
+  auto scan = [&](double lo, double hi, double scan_step) { return scanInto(events, f_of_w, lo, hi, scan_step); };
   auto best = [&] {
     return std::max_element(f_of_w.begin(), f_of_w.end(),
                             [](const auto& p, const auto& q) { return p.second < q.second; });
@@ -309,12 +312,7 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
       EventVector few;
       few.reserve(events.size() / k + 1);
       for (size_t i = 0; i < events.size(); i += k) few.push_back(events[i]);
-      const int n = std::max(2, int(std::ceil((hi - lo) / coarse - 1e-9)) + 1);
-      std::vector<double> ws(static_cast<size_t>(n));
-      for (int i = 0; i < n; ++i) ws[size_t(i)] = lo + (hi - lo) * i / (n - 1);
-      const std::vector<double> fs = contrasts(few, t_ref_ns, ws, v, setup.deep_planes);
-      for (size_t i = 0; i < ws.size(); ++i) thinned_f[ws[i]] = fs[i];
-      arc.evaluations += int(ws.size());
+      scanInto(few, thinned_f, lo, hi, coarse);
     } else {
       scan(lo, hi, coarse);
     }
