@@ -4,8 +4,8 @@
 #include <benchmark/benchmark.h>
 
 #include "../test/common/synthetic_events.h"
-#include "vwe_vo/core/backend.h"
-#include "vwe_vo/core/config.h"
+#include "vwe_vo/backend/backend.h"
+#include "vwe_vo/io/config.h"
 
 using namespace vwe_vo;
 

@@ -6,11 +6,11 @@
 #include <limits>
 
 #include "../test/common/synthetic_events.h"
-#include "vwe_vo/core/ackermann_arc.h"
-#include "vwe_vo/core/camera.h"
-#include "vwe_vo/core/config.h"
-#include "vwe_vo/core/emvs.h"
-#include "vwe_vo/core/vwe_objective.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/io/config.h"
+#include "vwe_vo/mapping/emvs.h"
+#include "vwe_vo/vwe/vwe_objective.h"
 
 using namespace vwe_vo;
 

@@ -2,9 +2,9 @@
 // sequence's fixed seed): processing time of Frontend::addEvents/process over the data duration.
 #include <benchmark/benchmark.h>
 
-#include "vwe_vo/core/frontend.h"
-#include "vwe_vo/core/sim/scene.h"
-#include "vwe_vo/core/sim/sequences.h"
+#include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/sim/scene.h"
+#include "vwe_vo/sim/sequences.h"
 
 using namespace vwe_vo;
 

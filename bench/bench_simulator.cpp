@@ -5,9 +5,9 @@
 #include <cmath>
 #include <string>
 
-#include "vwe_vo/core/camera.h"
-#include "vwe_vo/core/config.h"
-#include "vwe_vo/core/sim/sequences.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/io/config.h"
+#include "vwe_vo/sim/sequences.h"
 
 namespace {
 

@@ -1,10 +1,11 @@
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/ros/frame_baseline_node.h"
 
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
 
-#include "vwe_vo/core/options_yaml.h"
+#include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/event_input.h"
 #include "vwe_vo/ros/topics.h"

@@ -1,3 +1,4 @@
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/ros/frontend_node.h"
 
 #include <sensor_msgs/Image.h>
@@ -7,9 +8,9 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "vwe_vo/core/ackermann_arc.h"
-#include "vwe_vo/core/options_yaml.h"
-#include "vwe_vo/core/vwe_objective.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/io/options_yaml.h"
+#include "vwe_vo/vwe/vwe_objective.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/event_input.h"
 #include "vwe_vo/ros/topics.h"

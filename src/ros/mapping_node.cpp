@@ -1,3 +1,4 @@
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/ros/mapping_node.h"
 
 #include <sensor_msgs/Image.h>
@@ -8,7 +9,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "vwe_vo/core/options_yaml.h"
+#include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/event_input.h"
 #include "vwe_vo/ros/process_priority.h"

@@ -6,8 +6,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "vwe_vo/core/evaluation.h"
-#include "vwe_vo/core/trajectory_io.h"
+#include "vwe_vo/eval/evaluation.h"
+#include "vwe_vo/io/trajectory_io.h"
 
 namespace {
 

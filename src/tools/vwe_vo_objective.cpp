@@ -24,10 +24,11 @@
 #include <sstream>
 #include <string>
 
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/EventArray.h"
-#include "vwe_vo/core/frontend.h"
-#include "vwe_vo/core/options_yaml.h"
-#include "vwe_vo/core/trajectory_io.h"
+#include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/io/options_yaml.h"
+#include "vwe_vo/io/trajectory_io.h"
 #include "vwe_vo/ros/conversions.h"
 
 namespace {

@@ -19,9 +19,10 @@
 #include <sstream>
 #include <string>
 
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/EventArray.h"
-#include "vwe_vo/core/config.h"
-#include "vwe_vo/core/offline_pipeline.h"
+#include "vwe_vo/io/config.h"
+#include "vwe_vo/pipeline/offline_pipeline.h"
 #include "vwe_vo/ros/conversions.h"
 
 namespace {
@@ -49,11 +50,6 @@ const char* kUsage =
     "  moved towards the front-end's by A (default 0): truth + A * (front-end - truth). A = 0 shows\n"
     "  the back-end objective's own bias, A = 0.5 how much of a front-end error it corrects.\n"
     "  The front-end's outputs are unchanged; report.json says how many arcs were replaced.\n";
-
-bool fileExists(const std::string& p) {
-  struct stat st;
-  return stat(p.c_str(), &st) == 0;
-}
 
 /// Duration of the ECD folder's ground truth if there is one (for the progress line), else 0.
 double groundTruthDuration(const std::string& dir) {

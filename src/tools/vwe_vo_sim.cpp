@@ -23,12 +23,13 @@
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 
-#include "vwe_vo/core/ackermann_arc.h"
-#include "vwe_vo/core/camera.h"
-#include "vwe_vo/core/config.h"
-#include "vwe_vo/core/sim/frame_simulator.h"
-#include "vwe_vo/core/sim/sequences.h"
-#include "vwe_vo/core/trajectory_io.h"
+#include "vwe_vo/io/files.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/io/config.h"
+#include "vwe_vo/sim/frame_simulator.h"
+#include "vwe_vo/sim/sequences.h"
+#include "vwe_vo/io/trajectory_io.h"
 #include "vwe_vo/ros/conversions.h"
 
 namespace {
@@ -120,42 +121,6 @@ Args parseArgs(int argc, char** argv) {
   if (a.format != "ecd" && a.format != "bag" && a.format != "ecd,bag" && a.format != "bag,ecd")
     throw std::invalid_argument("--format must be ecd, bag or ecd,bag (got '" + a.format + "')");
   return a;
-}
-
-bool fileExists(const std::string& p) {
-  struct stat st;
-  return ::stat(p.c_str(), &st) == 0;
-}
-
-void makeDirs(const std::string& path) {
-  std::string cur;
-  std::stringstream ss(path);
-  std::string part;
-  if (!path.empty() && path[0] == '/') cur = "/";
-  while (std::getline(ss, part, '/')) {
-    if (part.empty()) continue;
-    cur += part + "/";
-    if (::mkdir(cur.c_str(), 0755) != 0 && errno != EEXIST) throw std::runtime_error("cannot create directory " + cur);
-  }
-}
-
-// The package's config folder: next to the workspace's source link, or the working directory.
-std::string defaultConfigDir() {
-  char buf[4096];
-  const ssize_t n = ::readlink("/proc/self/exe", buf, sizeof(buf) - 1);
-  std::vector<std::string> candidates;
-  if (const char* env = std::getenv("VWE_VO_CONFIG_DIR")) candidates.push_back(env);
-  if (n > 0) {
-    buf[n] = 0;
-    const std::string exe(buf);
-    const std::string dir = exe.substr(0, exe.rfind('/'));  // ws/devel/lib/vwe_vo
-    candidates.push_back(dir + "/../../../src/vwe_vo/config");
-    candidates.push_back(dir + "/../../share/vwe_vo/config");
-  }
-  candidates.push_back("config");
-  for (const auto& c : candidates)
-    if (fileExists(c + "/davis346.yaml")) return c;
-  throw std::runtime_error("cannot find config/davis346.yaml; pass --calib or set VWE_VO_CONFIG_DIR");
 }
 
 std::string fmt(const char* f, double v) {

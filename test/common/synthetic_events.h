@@ -7,9 +7,9 @@
 #include <random>
 #include <vector>
 
-#include "vwe_vo/core/camera.h"
-#include "vwe_vo/core/events.h"
-#include "vwe_vo/core/trajectory_model.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sensor/events.h"
+#include "vwe_vo/trajectory/trajectory_model.h"
 
 namespace vwe_vo {
 namespace synthetic {

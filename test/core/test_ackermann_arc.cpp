@@ -4,7 +4,7 @@
 #include <functional>
 #include <stdexcept>
 
-#include "vwe_vo/core/ackermann_arc.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
 
 using namespace vwe_vo;
 

@@ -12,9 +12,9 @@
 #include <tuple>
 
 #include "../common/synthetic_events.h"
-#include "vwe_vo/core/backend.h"
-#include "vwe_vo/core/offline_pipeline.h"
-#include "vwe_vo/core/options_yaml.h"
+#include "vwe_vo/backend/backend.h"
+#include "vwe_vo/pipeline/offline_pipeline.h"
+#include "vwe_vo/io/options_yaml.h"
 
 using namespace vwe_vo;
 

@@ -8,11 +8,11 @@
 #include <algorithm>
 #include <cstdio>
 
-#include "vwe_vo/core/evaluation.h"
-#include "vwe_vo/core/offline_pipeline.h"
-#include "vwe_vo/core/options_yaml.h"
-#include "vwe_vo/core/sim/scene.h"
-#include "vwe_vo/core/sim/sequences.h"
+#include "vwe_vo/eval/evaluation.h"
+#include "vwe_vo/pipeline/offline_pipeline.h"
+#include "vwe_vo/io/options_yaml.h"
+#include "vwe_vo/sim/scene.h"
+#include "vwe_vo/sim/sequences.h"
 
 using namespace vwe_vo;
 

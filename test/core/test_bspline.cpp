@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "vwe_vo/core/bspline.h"
+#include "vwe_vo/trajectory/bspline.h"
 
 using namespace vwe_vo;
 

@@ -4,7 +4,7 @@
 #include <fstream>
 #include <limits>
 
-#include "vwe_vo/core/camera.h"
+#include "vwe_vo/sensor/camera.h"
 
 using namespace vwe_vo;
 

@@ -2,7 +2,7 @@
 
 #include <fstream>
 
-#include "vwe_vo/core/config.h"
+#include "vwe_vo/io/config.h"
 
 using namespace vwe_vo;
 

@@ -10,14 +10,14 @@
 #include <string>
 #include <vector>
 
-#include "vwe_vo/core/emvs.h"
-#include "vwe_vo/core/evaluation.h"
-#include "vwe_vo/core/offline_pipeline.h"
-#include "vwe_vo/core/options_yaml.h"
-#include "vwe_vo/core/sim/event_simulator.h"
-#include "vwe_vo/core/sim/scene.h"
-#include "vwe_vo/core/sim/sequences.h"
-#include "vwe_vo/core/sim/vehicle_trajectory.h"
+#include "vwe_vo/mapping/emvs.h"
+#include "vwe_vo/eval/evaluation.h"
+#include "vwe_vo/pipeline/offline_pipeline.h"
+#include "vwe_vo/io/options_yaml.h"
+#include "vwe_vo/sim/event_simulator.h"
+#include "vwe_vo/sim/scene.h"
+#include "vwe_vo/sim/sequences.h"
+#include "vwe_vo/sim/vehicle_trajectory.h"
 
 using namespace vwe_vo;
 

@@ -4,7 +4,7 @@
 #include <functional>
 #include <random>
 
-#include "vwe_vo/core/evaluation.h"
+#include "vwe_vo/eval/evaluation.h"
 
 using namespace vwe_vo;
 

@@ -1,7 +1,7 @@
 // Event containers and input bookkeeping against known answers.
 #include <gtest/gtest.h>
 
-#include "vwe_vo/core/events.h"
+#include "vwe_vo/sensor/events.h"
 
 using namespace vwe_vo;
 

@@ -9,13 +9,13 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "vwe_vo/core/ackermann_arc.h"
-#include "vwe_vo/core/camera.h"
-#include "vwe_vo/core/config.h"
-#include "vwe_vo/core/evaluation.h"
-#include "vwe_vo/core/frame_baseline.h"
-#include "vwe_vo/core/sim/frame_simulator.h"
-#include "vwe_vo/core/sim/sequences.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/io/config.h"
+#include "vwe_vo/eval/evaluation.h"
+#include "vwe_vo/baseline/frame_baseline.h"
+#include "vwe_vo/sim/frame_simulator.h"
+#include "vwe_vo/sim/sequences.h"
 
 namespace vwe_vo {
 namespace {

@@ -5,8 +5,8 @@
 #include <random>
 
 #include "../common/synthetic_events.h"
-#include "vwe_vo/core/config.h"
-#include "vwe_vo/core/frontend.h"
+#include "vwe_vo/io/config.h"
+#include "vwe_vo/frontend/frontend.h"
 
 using namespace vwe_vo;
 

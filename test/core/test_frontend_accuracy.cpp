@@ -6,11 +6,11 @@
 
 #include <cstdio>
 
-#include "vwe_vo/core/evaluation.h"
-#include "vwe_vo/core/frontend.h"
-#include "vwe_vo/core/options_yaml.h"
-#include "vwe_vo/core/sim/scene.h"
-#include "vwe_vo/core/sim/sequences.h"
+#include "vwe_vo/eval/evaluation.h"
+#include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/io/options_yaml.h"
+#include "vwe_vo/sim/scene.h"
+#include "vwe_vo/sim/sequences.h"
 
 using namespace vwe_vo;
 

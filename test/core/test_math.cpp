@@ -1,6 +1,6 @@
 #include <gtest/gtest.h>
 
-#include "vwe_vo/core/math.h"
+#include "vwe_vo/common/math.h"
 
 using namespace vwe_vo;
 

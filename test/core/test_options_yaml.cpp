@@ -5,8 +5,8 @@
 
 #include <fstream>
 
-#include "vwe_vo/core/options_yaml.h"
-#include "vwe_vo/core/sim/sequences.h"
+#include "vwe_vo/io/options_yaml.h"
+#include "vwe_vo/sim/sequences.h"
 
 using namespace vwe_vo;
 

@@ -6,11 +6,11 @@
 #include <cmath>
 #include <string>
 
-#include "vwe_vo/core/camera.h"
-#include "vwe_vo/core/config.h"
-#include "vwe_vo/core/sim/event_simulator.h"
-#include "vwe_vo/core/sim/scene.h"
-#include "vwe_vo/core/sim/sequences.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/io/config.h"
+#include "vwe_vo/sim/event_simulator.h"
+#include "vwe_vo/sim/scene.h"
+#include "vwe_vo/sim/sequences.h"
 
 namespace vwe_vo {
 namespace sim {

@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "vwe_vo/core/trajectory_io.h"
+#include "vwe_vo/io/trajectory_io.h"
 
 using namespace vwe_vo;
 

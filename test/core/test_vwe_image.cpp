@@ -2,9 +2,9 @@
 #include <gtest/gtest.h>
 
 #include "../common/synthetic_events.h"
-#include "vwe_vo/core/ackermann_arc.h"
-#include "vwe_vo/core/config.h"
-#include "vwe_vo/core/vwe_image.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/io/config.h"
+#include "vwe_vo/vwe/vwe_image.h"
 
 using namespace vwe_vo;
 

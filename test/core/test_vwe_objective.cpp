@@ -6,7 +6,7 @@
 #include <random>
 
 #include "../common/synthetic_events.h"
-#include "vwe_vo/core/vwe_objective.h"
+#include "vwe_vo/vwe/vwe_objective.h"
 
 using namespace vwe_vo;
 

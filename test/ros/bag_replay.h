@@ -27,8 +27,8 @@
 
 #include <geometry_msgs/PoseStamped.h>
 
-#include "vwe_vo/core/evaluation.h"
-#include "vwe_vo/core/trajectory_io.h"
+#include "vwe_vo/eval/evaluation.h"
+#include "vwe_vo/io/trajectory_io.h"
 #include "vwe_vo/ros/conversions.h"
 
 #ifndef VWE_VO_TOOLS_DIR

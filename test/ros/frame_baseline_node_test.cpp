@@ -19,9 +19,10 @@
 #include <set>
 #include <vector>
 
-#include "vwe_vo/core/options_yaml.h"
-#include "vwe_vo/core/sim/frame_simulator.h"
-#include "vwe_vo/core/sim/sequences.h"
+#include "vwe_vo/io/files.h"
+#include "vwe_vo/io/options_yaml.h"
+#include "vwe_vo/sim/frame_simulator.h"
+#include "vwe_vo/sim/sequences.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/topics.h"
 #include "node_test_util.h"

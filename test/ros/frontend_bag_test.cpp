@@ -5,8 +5,9 @@
 #include <memory>
 
 #include "bag_replay.h"
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/AckermannArc.h"
-#include "vwe_vo/core/options_yaml.h"
+#include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/topics.h"
 
 using namespace vwe_vo;

@@ -15,8 +15,9 @@
 #include <mutex>
 
 #include "../common/synthetic_events.h"
-#include "vwe_vo/core/ackermann_arc.h"
-#include "vwe_vo/core/options_yaml.h"
+#include "vwe_vo/io/files.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/topics.h"
 #include "node_test_util.h"

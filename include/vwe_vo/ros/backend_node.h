@@ -21,10 +21,10 @@
 
 #include "vwe_vo/AckermannArc.h"
 #include "vwe_vo/EventArray.h"
-#include "vwe_vo/core/backend.h"
-#include "vwe_vo/core/camera.h"
-#include "vwe_vo/core/frontend.h"
-#include "vwe_vo/core/math.h"
+#include "vwe_vo/backend/backend.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/common/math.h"
 #include "vwe_vo/ros/calibrated_inbox.h"
 
 namespace vwe_vo {

@@ -12,7 +12,7 @@
 #include <deque>
 #include <mutex>
 
-#include "vwe_vo/core/camera.h"
+#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/ros/event_input.h"
 
 namespace vwe_vo {

@@ -18,12 +18,12 @@
 #include "vwe_vo/AckermannArc.h"
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/SplineTrajectory.h"
-#include "vwe_vo/core/bspline.h"
-#include "vwe_vo/core/camera.h"
-#include "vwe_vo/core/emvs.h"
-#include "vwe_vo/core/events.h"
-#include "vwe_vo/core/frontend.h"
-#include "vwe_vo/core/math.h"
+#include "vwe_vo/trajectory/bspline.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/mapping/emvs.h"
+#include "vwe_vo/sensor/events.h"
+#include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/common/math.h"
 
 namespace vwe_vo {
 

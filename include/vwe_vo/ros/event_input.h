@@ -9,8 +9,8 @@
 #include <sensor_msgs/CameraInfo.h>
 
 #include "vwe_vo/EventArray.h"
-#include "vwe_vo/core/camera.h"
-#include "vwe_vo/core/events.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sensor/events.h"
 
 namespace vwe_vo {
 

@@ -20,9 +20,9 @@
 
 #include <opencv2/core.hpp>
 
-#include "vwe_vo/core/camera.h"
-#include "vwe_vo/core/frame_baseline.h"
-#include "vwe_vo/core/math.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/baseline/frame_baseline.h"
+#include "vwe_vo/common/math.h"
 
 namespace vwe_vo {
 

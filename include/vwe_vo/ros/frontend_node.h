@@ -19,12 +19,12 @@
 
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/SplineTrajectory.h"
-#include "vwe_vo/core/bspline.h"
-#include "vwe_vo/core/camera.h"
-#include "vwe_vo/core/frontend.h"
-#include "vwe_vo/core/math.h"
+#include "vwe_vo/trajectory/bspline.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/common/math.h"
 #include "vwe_vo/ros/calibrated_inbox.h"
-#include "vwe_vo/core/vwe_image.h"
+#include "vwe_vo/vwe/vwe_image.h"
 
 namespace vwe_vo {
 

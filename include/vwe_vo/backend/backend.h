@@ -1,0 +1,319 @@
+// The back-end (paper Sec. III-C): a planar B-spline of base_link refined over a sliding window
+// by maximising the summed contrast of M Volumes of Warped Events (paper eq. 5), initialised
+// from the front-end's dead-reckoned arcs. Synchronous and ROS-free.
+#pragma once
+
+#include <ceres/first_order_function.h>
+
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/trajectory/bspline.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sensor/events.h"
+#include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/vwe/projective_volume.h"
+#include "vwe_vo/trajectory/stamped_trajectory.h"
+#include "vwe_vo/vwe/vwe_objective.h"
+
+namespace vwe_vo {
+
+struct BackendOptions {
+  VolumeOptions volume;                  // the VWE grid of every back-end volume
+  int degree = 3;                        // spline degree p (1..5)
+  double knot_spacing_s = 0.2;           // uniform knot span [s]
+  double tau1_s = 0.25;                  // spacing of the volume reference times [s]
+  double tau2_s = 1.0;                   // events span of one volume [s], > tau1_s (parallax: 0.4 s gained nothing over the front-end)
+  double window_s = 1.6;                 // length of the optimised sliding window [s]
+  double update_interval_s = 1.0;        // new arcs that trigger a refinement [s]
+  size_t max_events_per_volume = 10000;  // events voted per volume (uniform subsampling)
+  size_t min_events_per_volume = 300;    // fewer events: the volume is skipped [events]
+  int max_iterations = 20;               // LBFGS iterations per refinement
+  double function_tolerance = 1e-5;      // LBFGS stops when the relative cost change is below this [1]
+  int max_line_search_steps = 20;        // evaluations a line search may take (Ceres' default 20)
+  double step_scale_per_span = 0.25;     // solver unit of a control-point coordinate, as a fraction of the distance driven per knot span (at least 1 mm) [1]
+  double init_sample_interval_s = 0.05;  // spacing of the dead-reckoned poses fitted [s]
+  double smoothness_weight = 0.05;       // second-difference prior of the initial fit [1]
+  bool interpolate_arc_rates = true;     // dead reckoning with rates linear between the arcs' middles (false: steps)
+  double speed_prior_weight = 10.0;      // relative-speed prior vs the normalised VWE (0: off) [1]
+  double deformation_weight = 1.0;       // third-difference prior on the control-point moves (0: off) [1]
+  double arc_rate_prior_weight = 1e-2;   // the arcs' mean yaw rates as measurements, per (deg/s)^2 vs the normalised VWE (0: off) [1]
+  double max_backwards_jump_s = 0.05;    // arcs older than newest - this reset the back-end [s]
+  double output_rate_hz = 20.0;          // rate of the sampled trajectory (backend.tum) [Hz]
+  uint64_t seed = 1;                     // subsampling seed
+  void validate() const;                 // throws std::invalid_argument naming the field
+};
+
+struct BackendStats {
+  size_t events_in = 0;
+  size_t events_outside = 0;       // outside the sensor: dropped
+  size_t events_out_of_order = 0;  // older than the newest buffered event: dropped
+  size_t arcs_in = 0;
+  size_t arcs_held = 0;        // LOST / LOW_EVENTS / non-finite arcs dead-reckoned at the last measured rates
+  size_t updates = 0;          // refinements run
+  size_t volumes = 0;          // volumes optimised (summed over refinements)
+  size_t volumes_skipped = 0;  // in a standstill or with too few events
+  size_t evaluations = 0;      // objective + gradient evaluations
+  size_t rejected = 0;         // refinements whose result was worse than the start (reverted)
+  size_t resets = 0;
+  size_t solver_iterations = 0;     // LBFGS iterations (summed over refinements)
+  size_t max_iteration_stops = 0;   // refinements that ended at max_iterations (not converged)
+  size_t accepted = 0;              // refinements whose result was kept
+  double gain_sum = 0.0;            // sum over accepted refinements of f_final / f_start - 1
+  double solver_s = 0.0;   // wall time in the solver [s]
+  double last_gain = 0.0;  // objective ratio final / initial of the last refinement
+};
+
+/// One volume of the multi-volume objective: reference time and its (subsampled) events.
+struct BackendVolume {
+  int64_t t_ref_ns = 0;
+  EventVector events;
+};
+
+/// Sum of the VWE contrasts of several volumes (paper eq. 5) as a function of the control
+/// points [first_free, n) of a shared spline (the older ones stay fixed). Parameters are the free
+/// control points stacked [x, y, ...] in metres.
+class MultiVolumeObjective {
+ public:
+  /// spline, objectives must outlive this; the spline's free control points are overwritten by
+  /// every evaluation. The volumes are evaluated in parallel, one per thread of the pool; the sums
+  /// run in volume order (results independent of the thread count).
+  MultiVolumeObjective(std::shared_ptr<BSpline> spline, const Pose3& T_base_cam, int first_free,
+                       std::vector<BackendVolume> volumes, VweObjectivePool* objectives);
+  int numFree() const { return 2 * (spline_->numControlPoints() - first_free_); }
+  int firstFree() const { return first_free_; }
+  const std::vector<BackendVolume>& volumes() const { return volumes_; }
+  /// The free control points currently in the spline.
+  Eigen::VectorXd freeParams() const;
+  /// Sum of contrasts at params; gradient (if not null) w.r.t. the free parameters. Sets the
+  /// spline's free control points to params. The last few results are kept: asking again for
+  /// the same params (the solver's start and end points) costs no evaluation.
+  double evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient);
+  /// Sets the spline's free control points to params (no evaluation).
+  void setParams(const Eigen::VectorXd& params);
+  /// Evaluations computed (not served from the kept results).
+  size_t evaluations() const { return evaluations_; }
+
+ private:
+  std::shared_ptr<BSpline> spline_;
+  Pose3 T_base_cam_;
+  int first_free_;
+  std::vector<BackendVolume> volumes_;
+  VweObjectivePool* objectives_;
+  std::vector<double> contrasts_;                // per volume
+  std::vector<Eigen::VectorXd> full_gradients_;  // per volume, w.r.t. every control point
+  size_t evaluations_ = 0;
+  struct Kept {
+    Eigen::VectorXd params, gradient;  // gradient empty if not computed
+    double value;
+  };
+  std::vector<Kept> kept_;  // the newest last
+};
+
+/// A soft prior on the free control points of a spline (part of the back-end's cost).
+class SplinePrior {
+ public:
+  virtual ~SplinePrior() = default;
+  /// Value at the spline's current control points; gradient (if not null, sized and written
+  /// here) w.r.t. the free ones.
+  virtual double evaluate(Eigen::VectorXd* gradient) const = 0;
+};
+
+/// Soft prior that keeps the speed |c'(u)| of the free part of the spline near target speeds
+/// (the scale the front-end's v gave): weight / K * sum_k ((|c'(u_k)| - v_k) / v_k)^2. The VWE
+/// fixes the scale only through the overlap of the volumes, and rays beyond the depth range bias
+/// it (shrinking the path brings far points into the grid).
+class SpeedPrior : public SplinePrior {
+ public:
+  /// Targets are the spline's current speeds at u_k (samples with speed below min_speed_mps or in
+  /// a standstill are left out).
+  SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free, const std::vector<double>& u,
+             double weight, double min_speed_mps = 0.05);
+  double evaluate(Eigen::VectorXd* gradient) const override;
+  size_t numSamples() const { return u_.size(); }
+
+ private:
+  std::shared_ptr<const BSpline> spline_;
+  int first_free_;
+  std::vector<double> u_, v_;
+  double weight_;
+};
+
+/// The front-end's arcs as measurements of the spline's mean yaw rate over their windows:
+/// weight / K * sum_k ((psi(b_k) - psi(a_k)) / (b_k - a_k) - omega_k)^2 with the residual in
+/// deg/s. Each arc measures the heading change over its own window (steps at the windows' borders
+/// integrate to the same heading), so the prior holds the heading where the VWE says little (slow
+/// driving, where a tiny move of the control points turns the tangent) without pulling towards
+/// a dead reckoning's interpolation between the arcs.
+class ArcRatePrior : public SplinePrior {
+ public:
+  struct Arc {
+    double u_start, u_end;  // spline time [s]
+    double omega;           // mean yaw rate [rad/s]
+  };
+  /// Arcs whose window the free control points do not reach, or shorter than 1 ms, are left out.
+  ArcRatePrior(std::shared_ptr<const BSpline> spline, int first_free, const std::vector<Arc>& arcs,
+               double weight);
+  double evaluate(Eigen::VectorXd* gradient) const override;
+  size_t numArcs() const { return arcs_.size(); }
+
+ private:
+  std::shared_ptr<const BSpline> spline_;
+  int first_free_;
+  std::vector<Arc> arcs_;
+  double weight_;
+};
+
+/// Ceres view of a MultiVolumeObjective: minimises -sum(C)/sum(C at x0) of the volumes'
+/// contrasts C (+ the priors, + a deformation prior) over x = (params - params0) / step_scale,
+/// so that the start is x = 0 with cost -1. The deformation prior is deformation_weight *
+/// sum_i |x_i - 3 x_{i+1} + 3 x_{i+2} - x_{i+3}|^2 over the control-point moves x_i (the fixed
+/// points before the free ones count as zero moves): it leaves moves that are quadratic in the
+/// control-point index free (an offset of heading or of yaw rate) and damps wiggles the VWE's
+/// noise would put into the heading.
+class MultiVolumeCost : public ceres::FirstOrderFunction {
+ public:
+  MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0, double step_scale,
+                  double normaliser, std::vector<const SplinePrior*> priors = {},
+                  double deformation_weight = 0.0);
+  bool Evaluate(const double* x, double* cost, double* gradient) const override;
+  int NumParameters() const override { return static_cast<int>(params0_.size()); }
+  Eigen::VectorXd params(const double* x) const;
+
+ private:
+  MultiVolumeObjective* objective_;
+  Eigen::VectorXd params0_;
+  double step_scale_, normaliser_;
+  std::vector<const SplinePrior*> priors_;
+  double deformation_weight_;
+};
+
+/// Least squares of the control points [first, n) of `spline` to positions p_odom at spline
+/// times u (the others fixed), with a second-difference smoothness prior of weight w on the free
+/// points (it determines points the samples barely touch). Throws std::invalid_argument on sizes.
+void fitControlPoints(BSpline* spline, int first, const std::vector<double>& u,
+                      const std::vector<Vec2>& p_odom, double smoothness_weight);
+
+/// The sliding-window back-end. The spline has uniform, unclamped knots (k - p) * knot_spacing_s
+/// from the first arc's start: extending it appends knots and control points without moving the
+/// curve already refined (Piegl & Tiller placement would move every knot as data arrives). Each
+/// update (every update_interval_s of new arcs): the control points whose support reaches past
+/// the previous update are refit by least squares to the refined curve up to there and, beyond,
+/// to the front-end's dead reckoning composed onto the refined pose there; then every control
+/// point whose support ends before the window (and always the first p + 1: origin, heading and
+/// scale) is fixed and the others maximise the summed contrast of the volumes in the window
+/// (LBFGS on the analytic gradient, plus the SpeedPrior). Volumes whose reference time is in a
+/// standstill are skipped; STANDSTILL arcs become held intervals of the spline.
+class Backend {
+ public:
+  Backend(const BackendOptions& options, const CameraModel& camera, const Pose3& T_base_cam);
+
+  const BackendOptions& options() const { return options_; }
+  /// Time-ordered events; events outside the sensor or out of order are dropped and counted,
+  /// a jump back by more than max_backwards_jump_s resets the back-end. Events older than the
+  /// window are dropped as time advances.
+  void addEvents(const EventVector& events);
+  /// Front-end arcs in time order; an arc older than the newest by more than
+  /// max_backwards_jump_s resets the back-end (returns true). LOST and LOW_EVENTS arcs (or ones
+  /// with non-finite rates) carry no motion estimate: they are dead-reckoned at the last
+  /// measured rates (counted in arcs_held) and are not yaw-rate measurements.
+  bool addArc(const ArcEstimate& arc);
+  /// Runs a refinement if update_interval_s of new arcs have arrived; returns true if it did.
+  bool process();
+  /// Extends and refines up to the newest arc (end of data).
+  void finish();
+
+  bool hasSpline() const { return spline_ != nullptr; }
+  /// The refined spline (valid if hasSpline()).
+  const BSpline& spline() const { return *spline_; }
+  /// Newest time the spline is initialised and refined up to.
+  int64_t processedUntil() const { return processed_ns_; }
+  /// Start of the first arc and end of the newest arc since the last reset (-1: none yet).
+  int64_t oldestArcTime() const;
+  int64_t newestArcTime() const { return newest_arc_ns_; }
+  /// First control point the last refinement optimised (the ones before it are fixed).
+  int firstFree() const { return first_free_; }
+  /// Pose of base_link in odom at t_ns with its speed [m/s] and yaw rate [rad/s] (may be null):
+  /// on the refined spline up to processedUntil(), beyond it (up to the newest arc) the arcs'
+  /// dead reckoning (each arc's rates over its own window) anchored on the spline at
+  /// processedUntil(); before the first refinement that dead reckoning alone. False if t_ns is outside [first arc, newest arc].
+  bool poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const;
+  /// The front-end's dead reckoning the spline is fit to beyond its refined part (rates ramping
+  /// between the arcs' middles with interpolate_arc_rates, else steps), in the back-end's first
+  /// odom frame; the identity before the first arc.
+  Pose3 initialGuess(int64_t t_ns) const { return chain_ ? chain_->T_odom_base(t_ns) : Pose3::Identity(); }
+  /// Poses of base_link in odom every 1/rate_hz from the first arc to processedUntil().
+  Trajectory3 sampleTrajectory(double rate_hz) const;
+  const BackendStats& stats() const { return stats_; }
+  /// Events held for the next refinement (bounded by the window, not the sequence).
+  size_t bufferedEvents() const { return buffer_.size(); }
+  void reset();
+
+ private:
+  void update(int64_t t_new_ns);
+  void extendSpline(int64_t t_new_ns);
+  std::vector<BSpline::Interval> standstillIntervals(int64_t epoch_ns) const;
+  void refine(int64_t t_new_ns);
+
+  BackendOptions options_;
+  const CameraModel& camera_;
+  Pose3 T_base_cam_;
+  VweObjectivePool objectives_;
+  EventBuffer buffer_;
+  std::vector<std::pair<int64_t, int64_t>> standstills_ns_;  // merged STANDSTILL arcs
+  std::unique_ptr<ArcChain> chain_;                          // front-end dead reckoning (the fit's start)
+  // The arcs as steps, each at its own rates over its own window: poseAt() beyond the spline. A
+  // pose published there is final (ContinuousOdometry), and the ramps of chain_ change behind the
+  // newest arc's middle when the next arc arrives (/vwe/odom on indoor_long 0.556 with them, 0.357 with steps).
+  std::unique_ptr<ArcChain> steps_;
+  // The newest arc the chain reaches the middle of (interpolate_arc_rates): the chain ends at its
+  // t_ref and continues with its rates; the next arc appends the ramp between the two middles.
+  bool has_last_rates_ = false;
+  std::deque<ArcEstimate> arcs_;  // measured (OK) arcs of the last window (arc_rate_prior_weight)
+  bool has_good_rates_ = false;   // the newest measured arc's rates (held through unmeasured arcs)
+  double good_omega_ = 0.0, good_v_ = 0.0;
+  double last_omega_ = 0.0, last_v_ = 0.0;
+  int64_t newest_arc_ns_ = -1;
+  int64_t processed_ns_ = -1;
+  int first_free_ = 0;
+  Pose3 T_anchor_ = Pose3::Identity();  // maps the dead reckoning onto the spline's odom
+  std::shared_ptr<BSpline> spline_;
+  BackendStats stats_;
+};
+
+/// Odometry as REP-105 wants it: continuous, no jumps. Each output pose is the previous output
+/// composed with the back-end's current best estimate of the motion since then, so a refinement
+/// changes the increments that follow it, never a pose already published (Backend::poseAt
+/// re-anchors on every refinement, which would make odom -> base_link jump). The refined
+/// trajectory itself is the spline (/vwe/path, backend.tum).
+class ContinuousOdometry {
+ public:
+  /// Pose of base_link at t_ns (later than the previous call's), with speed and yaw rate (may be
+  /// null). False if the back-end has no pose at t_ns.
+  bool next(const Backend& backend, int64_t t_ns, Pose3* T_odom_base, double* v, double* omega);
+  /// The stream backend_node publishes (and vwe_vo_offline's odom.tum): next() every step_ns
+  /// from the back-end's first arc up to its newest, each time once, as
+  /// emit(t_ns, T_odom_base, v, omega). Call it on every new arc, before the refinement.
+  template <typename Emit>
+  void advance(const Backend& backend, int64_t step_ns, Emit&& emit) {
+    if (next_ns_ < 0) next_ns_ = backend.oldestArcTime();
+    for (; next_ns_ >= 0 && next_ns_ <= backend.newestArcTime(); next_ns_ += step_ns) {
+      Pose3 T;
+      double v = 0.0, omega = 0.0;
+      if (next(backend, next_ns_, &T, &v, &omega)) emit(next_ns_, T, v, omega);
+    }
+  }
+  void reset() { has_previous_ = false, next_ns_ = -1; }
+
+ private:
+  int64_t next_ns_ = -1;  // advance(): time of the next pose
+  bool has_previous_ = false;
+  int64_t t_previous_ns_ = 0;
+  Pose3 T_previous_ = Pose3::Identity();
+};
+
+}  // namespace vwe_vo

@@ -1,0 +1,60 @@
+// Fills the core options structs from the package's YAML configuration (config/vwe_vo.yaml).
+// Keys absent from the file keep the struct's defaults; unknown keys are reported so that a
+// typo is not silently ignored; every struct is validated after loading.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "vwe_vo/backend/backend.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/mapping/emvs.h"
+#include "vwe_vo/baseline/frame_baseline.h"
+#include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/common/math.h"
+
+namespace YAML {
+class Node;
+}
+
+namespace vwe_vo {
+
+void loadOptions(const YAML::Node& node, const std::string& section, VolumeOptions* options,
+                 std::vector<std::string>* warnings);
+void loadOptions(const YAML::Node& node, const std::string& section, FrontendOptions* options,
+                 std::vector<std::string>* warnings);
+void loadOptions(const YAML::Node& node, const std::string& section, BackendOptions* options,
+                 std::vector<std::string>* warnings);
+void loadOptions(const YAML::Node& node, const std::string& section, GlobalMapOptions* options,
+                 std::vector<std::string>* warnings);
+/// The mapping: section (EmvsOptions with nested volume: and global_map:).
+void loadOptions(const YAML::Node& node, const std::string& section, EmvsOptions* options,
+                 GlobalMapOptions* global_map, std::vector<std::string>* warnings);
+/// nominal_speed_mps is not read: the baseline uses frontend.nominal_speed_mps.
+void loadOptions(const YAML::Node& node, const std::string& section, FrameBaselineOptions* options,
+                 std::vector<std::string>* warnings);
+
+/// Everything a pipeline run needs from one configuration file.
+struct PipelineConfig {
+  std::string path;          // the file read (empty: defaults)
+  CameraCalibration camera;  // from `camera_calibration` (relative to the file's folder)
+  Pose3 T_base_cam = Pose3::Identity();
+  FrontendOptions frontend;
+  BackendOptions backend;
+  EmvsOptions mapping;
+  GlobalMapOptions global_map;
+  FrameBaselineOptions baseline;      // the frame-based baseline (vwe_vo_offline --baseline, frame_baseline_node)
+  bool frontend_only = false;         // skip the back-end (set by the caller, not the file)
+  bool backend_thread = true;         // OfflinePipeline: the back-end on its own thread, fed in order
+                                      // (as backend_node beside frontend_node; same results)
+  std::vector<std::string> warnings;  // unknown keys and the like
+};
+
+/// Reads a configuration file (throws std::runtime_error / std::invalid_argument naming the
+/// file and key on malformed values). An empty path gives the shipped defaults, with the
+/// calibration from default_calibration_path.
+PipelineConfig loadPipelineConfig(const std::string& path,
+                                  const std::string& default_calibration_path = "");
+
+
+}  // namespace vwe_vo

@@ -1,0 +1,659 @@
+#include "vwe_vo/backend/backend.h"
+
+#include <ceres/gradient_problem.h>
+#include <ceres/gradient_problem_solver.h>
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace vwe_vo {
+
+void BackendOptions::validate() const {
+  auto fail = [](const std::string& m) { throw std::invalid_argument("BackendOptions: " + m); };
+  volume.validate();
+  if (!(degree >= 1 && degree <= 5)) fail("degree must be in [1, 5]");
+  if (!(knot_spacing_s >= 0.02 && knot_spacing_s <= 10))
+    fail("knot_spacing_s must be in [0.02, 10] s");
+  if (!(tau1_s > 0.005 && tau1_s <= 10)) fail("tau1_s must be in (0.005, 10] s");
+  if (!(tau2_s > tau1_s && tau2_s <= 10)) fail("tau2_s must be in (tau1_s, 10] s");
+  if (!(window_s >= tau2_s && window_s <= 60)) fail("window_s must be in [tau2_s, 60] s");
+  if (!(update_interval_s > 0 && update_interval_s <= window_s))
+    fail("update_interval_s must be in (0, window_s] s");
+  if (max_events_per_volume < 100) fail("max_events_per_volume must be at least 100");
+  if (min_events_per_volume > max_events_per_volume)
+    fail("min_events_per_volume must be <= max_events_per_volume");
+  if (max_iterations < 0) fail("max_iterations must be >= 0");
+  if (max_line_search_steps < 1 || max_line_search_steps > 100) fail("max_line_search_steps must be in [1, 100]");
+  if (!(function_tolerance > 0 && function_tolerance < 0.1)) fail("function_tolerance must be in (0, 0.1)");
+  if (!(step_scale_per_span > 0 && step_scale_per_span <= 10))
+    fail("step_scale_per_span must be in (0, 10]");
+  if (!(init_sample_interval_s > 0 && init_sample_interval_s <= knot_spacing_s))
+    fail("init_sample_interval_s must be in (0, knot_spacing_s] s");
+  if (!(smoothness_weight >= 0 && std::isfinite(smoothness_weight)))
+    fail("smoothness_weight must be >= 0");
+  if (!(speed_prior_weight >= 0 && std::isfinite(speed_prior_weight)))
+    fail("speed_prior_weight must be >= 0");
+  if (!(deformation_weight >= 0 && std::isfinite(deformation_weight)))
+    fail("deformation_weight must be >= 0");
+  if (!(arc_rate_prior_weight >= 0 && std::isfinite(arc_rate_prior_weight)))
+    fail("arc_rate_prior_weight must be >= 0");
+  if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
+  if (!(output_rate_hz > 0 && output_rate_hz <= 10000))
+    fail("output_rate_hz must be in (0, 10000] Hz");
+}
+
+// ---------------------------------------------------------------------------------------------
+
+MultiVolumeObjective::MultiVolumeObjective(std::shared_ptr<BSpline> spline, const Pose3& T_base_cam,
+                                           int first_free, std::vector<BackendVolume> volumes,
+                                           VweObjectivePool* objectives)
+    : spline_(std::move(spline)),
+      T_base_cam_(T_base_cam),
+      first_free_(first_free),
+      volumes_(std::move(volumes)),
+      objectives_(objectives) {
+  if (first_free_ < 0 || first_free_ > spline_->numControlPoints())
+    throw std::invalid_argument("MultiVolumeObjective: first_free " + std::to_string(first_free_) +
+                                " outside [0, " + std::to_string(spline_->numControlPoints()) +
+                                "]");
+}
+
+Eigen::VectorXd MultiVolumeObjective::freeParams() const {
+  Eigen::VectorXd x(numFree());
+  for (int i = first_free_; i < spline_->numControlPoints(); ++i)
+    x.segment<2>(2 * (i - first_free_)) = spline_->controlPoints()[i];
+  return x;
+}
+
+void MultiVolumeObjective::setParams(const Eigen::VectorXd& params) {
+  if (params.size() != numFree())
+    throw std::invalid_argument("MultiVolumeObjective: " + std::to_string(params.size()) +
+                                " parameters, expected " + std::to_string(numFree()));
+  for (int i = first_free_; i < spline_->numControlPoints(); ++i)
+    spline_->setControlPoint(i, params.segment<2>(2 * (i - first_free_)));
+}
+
+double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient) {
+  constexpr size_t kKept = 4;
+  setParams(params);
+  for (const Kept& k : kept_) {
+    if (k.params != params || (gradient && k.gradient.size() == 0)) continue;
+    if (gradient) *gradient = k.gradient;
+    return k.value;
+  }
+  ++evaluations_;
+  const int n = int(volumes_.size());
+  contrasts_.assign(size_t(n), 0.0);
+  full_gradients_.resize(size_t(n));
+  if (n > 0) {  // (the priors' tests have no volumes and no pool)
+    objectives_->run(n, [&](int i, VweObjective& objective) {
+      const BackendVolume& v = volumes_[size_t(i)];
+      const BSplineCameraModel model(spline_, T_base_cam_, v.t_ref_ns);
+      contrasts_[size_t(i)] =
+          objective.evaluate(v.events, model, gradient ? &full_gradients_[size_t(i)] : nullptr).contrast;
+    });
+  }
+  if (gradient) gradient->setZero(numFree());
+  double sum = 0.0;
+  for (int i = 0; i < n; ++i) {
+    sum += contrasts_[size_t(i)];
+    if (gradient) *gradient += full_gradients_[size_t(i)].tail(numFree());
+  }
+  if (kept_.size() == kKept) kept_.erase(kept_.begin());
+  kept_.push_back({params, gradient ? *gradient : Eigen::VectorXd(), sum});
+  return sum;
+}
+
+SpeedPrior::SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free,
+                       const std::vector<double>& u, double weight, double min_speed_mps)
+    : spline_(std::move(spline)), first_free_(first_free), weight_(weight) {
+  for (double uk : u) {
+    bool still = false;
+    for (const auto& s : spline_->standstills()) still = still || (uk >= s.from_s && uk <= s.to_s);
+    const double v = spline_->velocity(uk).norm();
+    if (still || !(v >= min_speed_mps)) continue;
+    // Only samples the free control points move.
+    if (spline_->basis(uk, 0).first + spline_->degree() < first_free_) continue;
+    u_.push_back(uk);
+    v_.push_back(v);
+  }
+}
+
+double SpeedPrior::evaluate(Eigen::VectorXd* gradient) const {
+  const int num_free = 2 * (spline_->numControlPoints() - first_free_);
+  if (gradient) gradient->setZero(num_free);
+  if (u_.empty() || weight_ == 0.0) return 0.0;
+  const double w = weight_ / double(u_.size());
+  double f = 0.0;
+  for (size_t k = 0; k < u_.size(); ++k) {
+    const BasisDerivatives b = spline_->basis(u_[k], 1);
+    Vec2 c1 = Vec2::Zero();
+    for (int j = 0; j <= spline_->degree(); ++j)
+      c1 += b.values(1, j) * spline_->controlPoints()[b.first + j];
+    const double s = c1.norm();
+    const double r = (s - v_[k]) / v_[k];
+    f += w * r * r;
+    if (!gradient || !(s > 0)) continue;
+    const Vec2 ds_dc1 = c1 / s;
+    for (int j = 0; j <= spline_->degree(); ++j) {
+      const int i = b.first + j;
+      if (i < first_free_) continue;
+      gradient->segment<2>(2 * (i - first_free_)) += (2 * w * r / v_[k] * b.values(1, j)) * ds_dc1;
+    }
+  }
+  return f;
+}
+
+ArcRatePrior::ArcRatePrior(std::shared_ptr<const BSpline> spline, int first_free,
+                           const std::vector<Arc>& arcs, double weight)
+    : spline_(std::move(spline)), first_free_(first_free), weight_(weight) {
+  for (const Arc& a : arcs) {
+    if (!(a.u_end - a.u_start >= 1e-3) || !std::isfinite(a.omega)) continue;
+    // The headings at both ends depend on the control points active there (or, in a
+    // standstill or at a slow tangent, where the heading is taken from): the end is the later.
+    if (spline_->basis(a.u_end, 0).first + spline_->degree() < first_free_) continue;
+    arcs_.push_back(a);
+  }
+}
+
+double ArcRatePrior::evaluate(Eigen::VectorXd* gradient) const {
+  const int num_free = 2 * (spline_->numControlPoints() - first_free_);
+  if (gradient) gradient->setZero(num_free);
+  if (arcs_.empty() || weight_ == 0.0) return 0.0;
+  const double w = weight_ / double(arcs_.size());
+  constexpr double kDegPerRad = 180.0 / kPi;
+  double f = 0.0;
+  PlanarPoseJacobian ja, jb;
+  Vec2 c;
+  for (const Arc& a : arcs_) {
+    const double psi_a = spline_->planarPose(a.u_start, &c, gradient ? &ja : nullptr);
+    const double psi_b = spline_->planarPose(a.u_end, &c, gradient ? &jb : nullptr);
+    const double dt = a.u_end - a.u_start;
+    const double r = kDegPerRad * (wrapAngle(psi_b - psi_a) / dt - a.omega);
+    f += w * r * r;
+    if (!gradient) continue;
+    const double g = 2 * w * r * kDegPerRad / dt;
+    auto add = [&](const PlanarPoseJacobian& j, double sign) {
+      for (int k = 0; k < j.size; ++k) {
+        const int i = j.index[k] - 2 * first_free_;
+        if (i >= 0) (*gradient)[i] += sign * g * j.dpsi[k];
+      }
+    };
+    add(jb, 1.0);
+    add(ja, -1.0);
+  }
+  return f;
+}
+
+MultiVolumeCost::MultiVolumeCost(MultiVolumeObjective* objective, Eigen::VectorXd params0,
+                                 double step_scale, double normaliser,
+                                 std::vector<const SplinePrior*> priors, double deformation_weight)
+    : objective_(objective),
+      params0_(std::move(params0)),
+      step_scale_(step_scale),
+      normaliser_(normaliser),
+      priors_(std::move(priors)),
+      deformation_weight_(deformation_weight) {}
+
+Eigen::VectorXd MultiVolumeCost::params(const double* x) const {
+  return params0_ + step_scale_ * Eigen::Map<const Eigen::VectorXd>(x, params0_.size());
+}
+
+bool MultiVolumeCost::Evaluate(const double* x, double* cost, double* gradient) const {
+  Eigen::VectorXd g;
+  const double f = objective_->evaluate(params(x), gradient ? &g : nullptr);
+  if (!std::isfinite(f)) return false;
+  *cost = -f / normaliser_;
+  if (gradient) {
+    if (!g.allFinite()) return false;
+    Eigen::Map<Eigen::VectorXd>(gradient, params0_.size()) = (-step_scale_ / normaliser_) * g;
+  }
+  for (const SplinePrior* prior : priors_) {
+    Eigen::VectorXd gp;
+    *cost += prior->evaluate(gradient ? &gp : nullptr);  // the objective has set the control points
+    if (gradient) Eigen::Map<Eigen::VectorXd>(gradient, params0_.size()) += step_scale_ * gp;
+  }
+  if (deformation_weight_ > 0) {
+    // Control point k (of m free) moves by x[2k..2k+1]; three fixed (zero) moves precede them.
+    const int m = NumParameters() / 2;
+    auto move = [&](int k) { return k < 0 ? Vec2(Vec2::Zero()) : Vec2(x[2 * k], x[2 * k + 1]); };
+    for (int i = -3; i + 3 < m; ++i) {
+      const Vec2 d3 = move(i) - 3 * move(i + 1) + 3 * move(i + 2) - move(i + 3);
+      *cost += deformation_weight_ * d3.squaredNorm();
+      if (!gradient) continue;
+      const double c[4] = {1, -3, 3, -1};
+      for (int j = 0; j < 4; ++j) {
+        const int k = i + j;
+        if (k < 0) continue;
+        gradient[2 * k] += 2 * deformation_weight_ * c[j] * d3.x();
+        gradient[2 * k + 1] += 2 * deformation_weight_ * c[j] * d3.y();
+      }
+    }
+  }
+  return std::isfinite(*cost);
+}
+
+// ---------------------------------------------------------------------------------------------
+
+void fitControlPoints(BSpline* spline, int first, const std::vector<double>& u,
+                      const std::vector<Vec2>& p_odom, double smoothness_weight) {
+  const int n = spline->numControlPoints();
+  if (u.size() != p_odom.size())
+    throw std::invalid_argument("fitControlPoints: " + std::to_string(u.size()) + " times but " +
+                                std::to_string(p_odom.size()) + " positions");
+  if (first < 0 || first >= n)
+    throw std::invalid_argument("fitControlPoints: first " + std::to_string(first) +
+                                " outside [0, " + std::to_string(n) + ")");
+  const int m = n - first;
+  const std::vector<Vec2>& P = spline->controlPoints();
+  Eigen::MatrixXd AtA = Eigen::MatrixXd::Zero(m, m);
+  Eigen::MatrixXd Atb = Eigen::MatrixXd::Zero(m, 2);
+  // One row: sum_j a_j P_{idx_j} = b.
+  auto addRow = [&](const std::vector<std::pair<int, double>>& row, Vec2 b) {
+    for (const auto& c : row)
+      if (c.first < first) b -= c.second * P[c.first];
+    for (const auto& ci : row) {
+      if (ci.first < first) continue;
+      Atb.row(ci.first - first) += ci.second * b.transpose();
+      for (const auto& cj : row)
+        if (cj.first >= first) AtA(ci.first - first, cj.first - first) += ci.second * cj.second;
+    }
+  };
+  std::vector<std::pair<int, double>> row;
+  for (size_t k = 0; k < u.size(); ++k) {
+    const BasisDerivatives b = spline->basis(u[k], 0);
+    row.clear();
+    for (int j = 0; j <= spline->degree(); ++j) row.emplace_back(b.first + j, b.values(0, j));
+    addRow(row, p_odom[k]);
+  }
+  for (int i = std::max(1, first - 1); i + 1 < n; ++i) {
+    row = {{i - 1, smoothness_weight}, {i, -2 * smoothness_weight}, {i + 1, smoothness_weight}};
+    addRow(row, Vec2::Zero());
+  }
+  AtA.diagonal().array() += 1e-9 * (1.0 + AtA.diagonal().maxCoeff());
+  const Eigen::MatrixXd X = AtA.ldlt().solve(Atb);
+  for (int i = 0; i < m; ++i) spline->setControlPoint(first + i, X.row(i).transpose());
+}
+
+// ---------------------------------------------------------------------------------------------
+
+Backend::Backend(const BackendOptions& options, const CameraModel& camera, const Pose3& T_base_cam)
+    : options_(options),
+      camera_(camera),
+      T_base_cam_(T_base_cam),
+      objectives_(camera_, (options.validate(), options.volume)) {}
+
+void Backend::reset() {
+  buffer_.clear();
+  standstills_ns_.clear();
+  chain_.reset();
+  steps_.reset();
+  has_last_rates_ = has_good_rates_ = false;
+  arcs_.clear();
+  newest_arc_ns_ = processed_ns_ = -1;
+  first_free_ = 0;
+  T_anchor_ = Pose3::Identity();
+  spline_.reset();
+  ++stats_.resets;
+}
+
+void Backend::addEvents(const EventVector& events) {
+  if (events.empty()) return;
+  stats_.events_in += events.size();
+  if (!buffer_.empty() &&
+      events.front().t_ns < buffer_.newestTime() - secToNs(options_.max_backwards_jump_s))
+    reset();
+  for (const PixelEvent& e : events) {
+    if (!camera_.inside(e.x, e.y))
+      ++stats_.events_outside;
+    else if (!buffer_.push(e))
+      ++stats_.events_out_of_order;
+  }
+  // Bounded memory also when no arcs arrive: the next refinement never looks further back.
+  const int64_t keep_ns = secToNs(options_.window_s + options_.tau2_s + options_.update_interval_s);
+  if (!buffer_.empty() && buffer_.newestTime() - buffer_.oldestTime() > keep_ns + keep_ns / 4)
+    buffer_.dropBefore(buffer_.newestTime() - keep_ns);
+}
+
+bool Backend::addArc(const ArcEstimate& arc) {
+  ++stats_.arcs_in;
+  bool was_reset = false;
+  if (chain_ && arc.t_end_ns < newest_arc_ns_ - secToNs(options_.max_backwards_jump_s)) {
+    reset();
+    was_reset = true;
+  }
+  if (!chain_) {
+    chain_ = std::make_unique<ArcChain>(Pose3::Identity(), arc.t_start_ns);
+    steps_ = std::make_unique<ArcChain>(Pose3::Identity(), arc.t_start_ns);
+  }
+  if (newest_arc_ns_ >= 0 && arc.t_end_ns <= newest_arc_ns_) return was_reset;
+  const bool still = arc.status == ArcStatus::kStandstill;
+  const bool measured = arc.status == ArcStatus::kOk && std::isfinite(arc.omega) && std::isfinite(arc.v);
+  if (measured) {
+    good_omega_ = arc.omega;
+    good_v_ = arc.v;
+    has_good_rates_ = true;
+  } else if (!still) {
+    ++stats_.arcs_held;  // no motion estimate: the last measured rates are held through it
+  }
+  const double omega = still ? 0.0 : measured ? arc.omega : has_good_rates_ ? good_omega_ : 0.0;
+  const double v = still ? 0.0 : measured ? arc.v : has_good_rates_ ? good_v_ : 0.0;
+  const int64_t from = newest_arc_ns_ >= 0 ? newest_arc_ns_ : arc.t_start_ns;
+  steps_->append(omega, v, arc.t_end_ns);
+  if (!options_.interpolate_arc_rates) {
+    chain_->append(omega, v, arc.t_end_ns);
+  } else if (still) {
+    // The moving arc before keeps its rates to its end; the standstill holds the pose.
+    if (has_last_rates_ && from > chain_->endTime()) chain_->append(last_omega_, last_v_, from);
+    chain_->append(0.0, 0.0, arc.t_end_ns);
+    has_last_rates_ = false;
+  } else {
+    // Each arc is the mean rate over its window, i.e. the rate at its middle: between two
+    // middles the rates ramp linearly (in short constant pieces), as integrateArcs() does.
+    const int64_t t_ref = std::clamp(arc.t_ref_ns, std::max(from, chain_->endTime()), arc.t_end_ns);
+    if (!has_last_rates_) {
+      if (from > chain_->endTime()) chain_->append(0.0, 0.0, from);  // after a standstill
+      chain_->append(omega, v, t_ref);
+    } else {
+      constexpr int kPieces = 8;
+      const int64_t t0 = chain_->endTime();
+      for (int k = 0; k < kPieces; ++k) {
+        const double s = (k + 0.5) / kPieces;
+        chain_->append((1 - s) * last_omega_ + s * omega, (1 - s) * last_v_ + s * v,
+                       t0 + (t_ref - t0) * (k + 1) / kPieces);
+      }
+      chain_->append(omega, v, t_ref);  // empty: beyond its end the chain goes on at the arc's rates
+    }
+    last_omega_ = omega;
+    last_v_ = v;
+    has_last_rates_ = true;
+  }
+  if (measured) {
+    arcs_.push_back(arc);
+    // Bounded: the next refinement's window starts at most window_s before its newest arc.
+    const int64_t keep_ns = secToNs(options_.window_s + options_.update_interval_s);
+    while (!arcs_.empty() && arcs_.front().t_end_ns < arc.t_end_ns - keep_ns) arcs_.pop_front();
+  }
+  if (still) {
+    if (!standstills_ns_.empty() && standstills_ns_.back().second >= from)
+      standstills_ns_.back().second = arc.t_end_ns;
+    else
+      standstills_ns_.emplace_back(from, arc.t_end_ns);
+  }
+  newest_arc_ns_ = arc.t_end_ns;
+  return was_reset;
+}
+
+bool Backend::process() {
+  if (!chain_) return false;
+  const int64_t from = processed_ns_ < 0 ? chain_->startTime() : processed_ns_;
+  if (dtSec(newest_arc_ns_, from) < options_.update_interval_s) return false;
+  update(newest_arc_ns_);
+  return true;
+}
+
+void Backend::finish() {
+  if (!chain_ || newest_arc_ns_ <= processed_ns_) return;
+  if (dtSec(newest_arc_ns_, chain_->startTime()) < 2 * options_.init_sample_interval_s) return;
+  update(newest_arc_ns_);
+}
+
+void Backend::update(int64_t t_new_ns) {
+  extendSpline(t_new_ns);
+  refine(t_new_ns);
+  processed_ns_ = t_new_ns;
+  T_anchor_ = spline_->T_odom_base(spline_->toSplineTime(t_new_ns)) *
+              steps_->T_odom_base(t_new_ns).inverse();
+  ++stats_.updates;
+  // Bounded memory: events before the next window cannot be used again.
+  const int64_t keep_from = t_new_ns - secToNs(options_.window_s + options_.tau2_s);
+  if (!buffer_.empty() && buffer_.oldestTime() < keep_from) buffer_.dropBefore(keep_from);
+}
+
+namespace {
+// The planar rigid motion that best maps the dead reckoning onto the refined spline over
+// [t_end - span, t_end] (least squares of the positions; their spread determines the heading far
+// better than the spline's tangent at the end of its refined part). Falls back to matching the
+// poses at t_end when the vehicle barely moved over the span.
+Pose3 anchorOnSpline(const BSpline& spline, const ArcChain& chain, int64_t t_end_ns, double span_s) {
+  const Pose3 T_end = spline.T_odom_base(spline.toSplineTime(t_end_ns)) *
+                      chain.T_odom_base(t_end_ns).inverse();
+  const int64_t t_from =
+      std::max({t_end_ns - secToNs(span_s), chain.startTime(),
+                spline.epochNs() + secToNs(spline.validFrom())});
+  constexpr int kSamples = 21;
+  if (t_end_ns - t_from < secToNs(0.05)) return T_end;
+  std::vector<Vec2> q(kSamples), p(kSamples);
+  Vec2 qc = Vec2::Zero(), pc = Vec2::Zero();
+  for (int k = 0; k < kSamples; ++k) {
+    const int64_t t = t_from + (t_end_ns - t_from) * k / (kSamples - 1);
+    q[k] = chain.T_odom_base(t).translation().head<2>();
+    p[k] = spline.position(spline.toSplineTime(t));
+    qc += q[k] / kSamples;
+    pc += p[k] / kSamples;
+  }
+  double sxx = 0, sxy = 0, spread = 0;  // H = sum (q - qc)(p - pc)^T
+  for (int k = 0; k < kSamples; ++k) {
+    const Vec2 a = q[k] - qc, b = p[k] - pc;
+    sxx += a.dot(b);
+    sxy += a.x() * b.y() - a.y() * b.x();
+    spread += a.squaredNorm();
+  }
+  if (spread / kSamples < 0.02 * 0.02) return T_end;  // moved less than ~2 cm: heading unknown
+  const double theta = std::atan2(sxy, sxx);
+  const Eigen::Rotation2Dd R(theta);
+  // Position: through the pose at t_end (continuity there), rotation from the fit.
+  const Vec2 q_end = chain.T_odom_base(t_end_ns).translation().head<2>();
+  const Vec2 t = spline.position(spline.toSplineTime(t_end_ns)) - R * q_end;
+  return makePose(rotZ(theta), Vec3(t.x(), t.y(), 0.0));
+}
+}  // namespace
+
+std::vector<BSpline::Interval> Backend::standstillIntervals(int64_t epoch_ns) const {
+  std::vector<BSpline::Interval> out;
+  for (const auto& s : standstills_ns_)
+    out.push_back({dtSec(s.first, epoch_ns), dtSec(s.second, epoch_ns)});
+  return out;
+}
+
+void Backend::extendSpline(int64_t t_new_ns) {
+  const int p = options_.degree;
+  const double dk = options_.knot_spacing_s;
+  const int64_t epoch = spline_ ? spline_->epochNs() : chain_->startTime();
+  const double u_new = dtSec(t_new_ns, epoch);
+  // Uniform knots (k - p) dk, unclamped: extending appends knots and control points and leaves
+  // the existing curve on the old domain untouched.
+  const int spans = std::max(1, int(std::ceil(u_new / dk - 1e-9)));
+  const int n = spans + p;
+  std::vector<double> knots(n + p + 1);
+  for (int k = 0; k <= n + p; ++k) knots[k] = (k - p) * dk;
+
+  std::vector<Vec2> P(n, Vec2::Zero());
+  int first = 0;
+  Pose3 T_anchor = Pose3::Identity();  // maps the front-end's odom into the spline's odom
+  double u_old = 0.0;
+  if (spline_) {
+    u_old = spline_->toSplineTime(processed_ns_);
+    const int n_old = spline_->numControlPoints();
+    for (int i = 0; i < std::min(n, n_old); ++i) P[i] = spline_->controlPoints()[i];
+    // Refit every control point whose support reaches past u_old (the unrefined part).
+    while (first < n_old && knots[first + p + 1] <= u_old) ++first;
+    first = std::min(first, n - 1);
+    T_anchor = anchorOnSpline(*spline_, *chain_, processed_ns_, options_.window_s / 2);
+  }
+  auto next = std::make_shared<BSpline>(p, knots, P, epoch);
+  next->setStandstills(standstillIntervals(epoch));
+
+  std::vector<double> u;
+  std::vector<Vec2> pos;
+  // The first fit also samples the dead reckoning (extrapolated) one knot span before the
+  // domain, so that the start pose is not an end effect of the least squares.
+  const double u_from = spline_ ? std::max(0.0, knots[first]) : -dk, u_to = next->validTo();
+  const int samples =
+      std::max(2, int(std::ceil((u_to - u_from) / options_.init_sample_interval_s)) + 1);
+  for (int k = 0; k < samples; ++k) {
+    const double uk = u_from + (u_to - u_from) * k / (samples - 1);
+    u.push_back(uk);
+    if (spline_ && uk <= u_old)
+      pos.push_back(spline_->position(uk));
+    else
+      pos.push_back((T_anchor * chain_->T_odom_base(epoch + secToNs(uk))).translation().head<2>());
+  }
+  fitControlPoints(next.get(), first, u, pos, options_.smoothness_weight);
+  spline_ = next;
+}
+
+void Backend::refine(int64_t t_new_ns) {
+  const int p = options_.degree;
+  const double u_new = spline_->toSplineTime(t_new_ns);
+  const double u_window = std::max(spline_->validFrom(), u_new - options_.window_s);
+  // Control points whose support ends before the window are fixed, and so are the first p + 1
+  // (the first segment from the front-end: origin, heading and scale).
+  int first_free = p + 1;
+  while (first_free < spline_->numControlPoints() &&
+         spline_->knots()[first_free + p + 1] <= u_window)
+    ++first_free;
+  first_free_ = first_free;
+  if (first_free >= spline_->numControlPoints() || options_.max_iterations == 0) return;
+
+  const std::vector<BSpline::Interval>& still = spline_->standstills();
+  auto inStandstill = [&](double u) {
+    for (const auto& s : still)
+      if (u >= s.from_s && u <= s.to_s) return true;
+    return false;
+  };
+  std::vector<BackendVolume> volumes;
+  const double half = 0.5 * options_.tau2_s;
+  for (double ur = u_new - half; ur - half >= u_window - 1e-9; ur -= options_.tau1_s) {
+    if (inStandstill(ur)) {
+      ++stats_.volumes_skipped;
+      continue;
+    }
+    const int64_t t_ref = spline_->epochNs() + secToNs(ur);
+    EventVector ev = buffer_.window(t_ref - secToNs(half), t_ref + secToNs(half));
+    if (ev.size() < options_.min_events_per_volume) {
+      ++stats_.volumes_skipped;
+      continue;
+    }
+    volumes.push_back({t_ref, subsampleEvents(ev, options_.max_events_per_volume,
+                                              options_.seed + volumes.size())});
+  }
+  if (volumes.empty()) return;
+  stats_.volumes += volumes.size();
+
+  MultiVolumeObjective objective(spline_, T_base_cam_, first_free, std::move(volumes), &objectives_);
+  const Eigen::VectorXd params0 = objective.freeParams();
+  // With the gradient: the solver's first evaluation, at params0, is then already done.
+  Eigen::VectorXd g0;
+  const double f0 = objective.evaluate(params0, &g0);
+  if (!(f0 > 0) || !std::isfinite(f0)) return;
+
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<double> u_prior;
+  for (double u = u_window; u <= u_new; u += options_.init_sample_interval_s) u_prior.push_back(u);
+  const SpeedPrior speed_prior(spline_, first_free, u_prior, options_.speed_prior_weight);
+  std::vector<ArcRatePrior::Arc> arcs;
+  for (const ArcEstimate& a : arcs_) {
+    const double ua = spline_->toSplineTime(a.t_start_ns), ub = spline_->toSplineTime(a.t_end_ns);
+    if (ub > u_window && ub <= u_new + 1e-9) arcs.push_back({ua, ub, a.omega});
+  }
+  const ArcRatePrior arc_prior(spline_, first_free, arcs, options_.arc_rate_prior_weight);
+  std::vector<const SplinePrior*> priors;
+  if (options_.speed_prior_weight > 0) priors.push_back(&speed_prior);
+  if (options_.arc_rate_prior_weight > 0) priors.push_back(&arc_prior);
+  // The solver's unit follows the vehicle's scale: control points of a car moving 1.2 m per knot
+  // span need moves of centimetres, a robot's of millimetres (LBFGS stopped after 2-5 iterations
+  // on the street with a fixed 2 cm unit).
+  double mean_speed = 0.0;
+  for (double u : u_prior) mean_speed += spline_->velocity(u).norm() / double(u_prior.size());
+  const double step_m =
+      std::max(1e-3, options_.step_scale_per_span * mean_speed * options_.knot_spacing_s);
+  auto* cost = new MultiVolumeCost(&objective, params0, step_m, f0, priors,
+                                   options_.deformation_weight);
+  ceres::GradientProblem problem(cost);  // takes ownership
+  ceres::GradientProblemSolver::Options so;
+  so.line_search_direction_type = ceres::LBFGS;
+  so.max_num_iterations = options_.max_iterations;
+  so.function_tolerance = options_.function_tolerance;
+  so.max_num_line_search_step_size_iterations = options_.max_line_search_steps;
+  so.gradient_tolerance = 1e-8;
+  so.parameter_tolerance = 1e-6;
+  so.logging_type = ceres::SILENT;
+  ceres::GradientProblemSolver::Summary summary;
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(params0.size());
+  ceres::Solve(so, problem, x.data(), &summary);
+  const Eigen::VectorXd params = cost->params(x.data());
+  const double f1 = objective.evaluate(params, nullptr);  // the solver's last point: kept
+  stats_.solver_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  stats_.evaluations += objective.evaluations();
+  stats_.solver_iterations += summary.iterations.empty() ? 0 : summary.iterations.size() - 1;
+  if (summary.termination_type == ceres::NO_CONVERGENCE) ++stats_.max_iteration_stops;
+  // Accept what lowered the total cost (VWE and speed prior); anything else is reverted.
+  if (!(summary.final_cost <= summary.initial_cost) || !std::isfinite(f1) || !params.allFinite()) {
+    ++stats_.rejected;
+    objective.setParams(params0);  // restores the start
+    stats_.last_gain = 1.0;
+  } else {
+    stats_.last_gain = f1 / f0;
+    stats_.gain_sum += f1 / f0 - 1.0;
+    ++stats_.accepted;
+  }
+}
+
+int64_t Backend::oldestArcTime() const { return chain_ ? chain_->startTime() : -1; }
+
+bool Backend::poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const {
+  if (!chain_ || t_ns < chain_->startTime() || t_ns > newest_arc_ns_) return false;
+  constexpr int64_t kRateStep_ns = 20000000;  // central differences for the rates [ns]
+  auto pose = [&](int64_t t) {
+    if (spline_ && t <= processed_ns_) return spline_->T_odom_base(spline_->toSplineTime(t));
+    return Pose3(T_anchor_ * steps_->T_odom_base(t));
+  };
+  *T_odom_base = pose(t_ns);
+  if (v || omega) {
+    const int64_t a = std::max(chain_->startTime(), t_ns - kRateStep_ns);
+    const int64_t b = std::min(newest_arc_ns_, t_ns + kRateStep_ns);
+    const double dt = dtSec(b, a);
+    const Pose3 Ta = pose(a), Tb = pose(b);
+    const Pose3 rel = Ta.inverse() * Tb;
+    if (v) *v = dt > 0 ? rel.translation().head<2>().norm() / dt : 0.0;
+    if (v && rel.translation().x() < 0) *v = -*v;
+    if (omega) *omega = dt > 0 ? std::atan2(rel.linear()(1, 0), rel.linear()(0, 0)) / dt : 0.0;
+  }
+  return true;
+}
+
+Trajectory3 Backend::sampleTrajectory(double rate_hz) const {
+  Trajectory3 out;
+  if (!spline_ || !(rate_hz > 0)) return out;
+  const int64_t t0 = spline_->epochNs(), t1 = processed_ns_;
+  const int64_t step = std::max<int64_t>(1, secToNs(1.0 / rate_hz));
+  for (int64_t t = t0; t <= t1; t += step)
+    out.push_back({t, spline_->T_odom_base(spline_->toSplineTime(t))});
+  if (out.empty() || out.back().t_ns < t1)
+    out.push_back({t1, spline_->T_odom_base(spline_->toSplineTime(t1))});
+  return out;
+}
+
+bool ContinuousOdometry::next(const Backend& backend, int64_t t_ns, Pose3* T_odom_base, double* v,
+                              double* omega) {
+  Pose3 T_best;
+  if (!backend.poseAt(t_ns, &T_best, v, omega)) return false;
+  Pose3 T_was;
+  if (has_previous_ && t_ns > t_previous_ns_ && backend.poseAt(t_previous_ns_, &T_was, nullptr, nullptr)) {
+    // The motion since the previous output as the back-end sees it now, on the output so far.
+    *T_odom_base = Pose3(T_previous_ * (T_was.inverse() * T_best));
+  } else {
+    *T_odom_base = T_best;  // the first pose, or the previous one left the back-end's span
+  }
+  has_previous_ = true;
+  t_previous_ns_ = t_ns;
+  T_previous_ = *T_odom_base;
+  return true;
+}
+
+}  // namespace vwe_vo

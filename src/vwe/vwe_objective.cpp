@@ -1,0 +1,215 @@
+#include "vwe_vo/vwe/vwe_objective.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace vwe_vo {
+
+EventVector subsampleEvents(const EventVector& events, size_t max_events, uint64_t seed) {
+  if (max_events == 0 || events.size() <= max_events) return events;
+  EventVector out;
+  out.reserve(max_events);
+  const double stride = double(events.size()) / double(max_events);
+  // Phase in [0, stride) from a splitmix64 hash of the seed: deterministic, seed-dependent.
+  uint64_t z = seed + 0x9e3779b97f4a7c15ULL;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  z ^= z >> 31;
+  const double phase = double(z >> 11) / double(1ULL << 53) * stride;
+  for (size_t k = 0; k < max_events; ++k) {
+    const size_t i = std::min(events.size() - 1, size_t(phase + double(k) * stride));
+    out.push_back(events[i]);
+  }
+  return out;
+}
+
+EventVector subsampleEventsPerTimeSlice(const EventVector& events, int64_t t0_ns, int64_t t1_ns, size_t max_events,
+                                        int bins, uint64_t seed) {
+  if (bins <= 1 || t1_ns <= t0_ns) return subsampleEvents(events, max_events, seed);
+  EventVector out;
+  out.reserve(max_events);
+  const size_t per_bin = std::max<size_t>(1, max_events / size_t(bins));
+  size_t begin = 0;
+  for (int b = 0; b < bins; ++b) {
+    const int64_t edge = t0_ns + (t1_ns - t0_ns) * (b + 1) / bins;
+    size_t end = begin;
+    while (end < events.size() && (events[end].t_ns < edge || b == bins - 1)) ++end;
+    const EventVector slice(events.begin() + begin, events.begin() + end);
+    const EventVector kept = subsampleEvents(slice, per_bin, seed + uint64_t(b));
+    out.insert(out.end(), kept.begin(), kept.end());
+    begin = end;
+  }
+  return out;
+}
+
+VweObjective::VweObjective(const CameraModel& camera, ProjectiveVolume* volume)
+    : camera_(camera), volume_(volume), pool_(volume->options().num_threads) {}
+
+namespace {
+// d[u0, du, v0, dv] of the VolumeRay of (o, d) (ax, ay = d_x / d_z, d_y / d_z) for a pose
+// derivative that moves the direction by dd and the origin by dto.
+inline Eigen::Vector4d rayDerivative(const Vec3& o, const Vec3& d, double ax, double ay, const Vec3& dd,
+                                     const Vec3& dto, double fx, double fy) {
+  const double dax = (dd.x() - ax * dd.z()) / d.z();
+  const double day = (dd.y() - ay * dd.z()) / d.z();
+  const double dbx = dto.x() - dto.z() * ax - o.z() * dax;
+  const double dby = dto.y() - dto.z() * ay - o.z() * day;
+  return Eigen::Vector4d(fx * dax, fx * dbx, fy * day, fy * dby);
+}
+}  // namespace
+
+void VweObjective::buildChunk(const EventVector& events, size_t begin, size_t end, const TrajectoryModel& model,
+                              bool with_jacobian, Chunk* out) const {
+  out->rays.clear();
+  out->jac_count.clear();
+  out->jac_param.clear();
+  out->jac_value.clear();
+  out->times.clear();
+  out->skipped_time = out->skipped_behind = 0;
+  const double fx = volume_->fx(), fy = volume_->fy(), cx = volume_->cx(), cy = volume_->cy();
+  const bool planar = with_jacobian && model.hasPlanarJacobian();
+  PoseJacobian& pj = out->pose_jac;
+  PlanarLocalJacobian lj;
+  // The pose of a slice is computed once; slices lie on a fixed grid of absolute times, so the
+  // result does not depend on how the events are chunked.
+  const int64_t slice = secToNs(volume_->options().pose_slice_s);
+  int64_t pose_t = std::numeric_limits<int64_t>::min();
+  Pose3 T = Pose3::Identity();
+  for (size_t k = begin; k < end; ++k) {
+    const PixelEvent& e = events[k];
+    if (!model.covers(e.t_ns)) {
+      ++out->skipped_time;
+      continue;
+    }
+    int64_t t = e.t_ns;
+    if (slice > 1) {
+      const int64_t start = t - ((t % slice) + slice) % slice;
+      t = start + slice / 2;
+      if (!model.covers(t)) t = e.t_ns;  // the model ends inside this slice
+    }
+    if (t != pose_t) {
+      T = planar ? model.T_Cr_CtPlanar(t, &lj) : model.T_Cr_Ct(t, with_jacobian ? &pj : nullptr);
+      pose_t = t;
+    }
+    const Vec3 f = camera_.bearing(e.x, e.y).cast<double>();
+    const Vec3 o = T.translation();
+    const Vec3 d = T.linear() * f;
+    VolumeRay ray;
+    if (!makeVolumeRay(o, d, fx, fy, cx, cy, &ray)) {
+      ++out->skipped_behind;
+      continue;
+    }
+    out->rays.push_back(ray);
+    if (!with_jacobian) continue;
+    const double ax = d.x() / d.z(), ay = d.y() / d.z();
+    if (planar) {
+      // Three derivatives per ray (psi, x, y); the model chains them to its parameters.
+      out->times.push_back(t);
+      out->jac_value.push_back(rayDerivative(o, d, ax, ay, lj.dR_dpsi * f, lj.dt_dpsi, fx, fy));
+      out->jac_value.push_back(rayDerivative(o, d, ax, ay, Vec3::Zero(), lj.dt_dx, fx, fy));
+      out->jac_value.push_back(rayDerivative(o, d, ax, ay, Vec3::Zero(), lj.dt_dy, fx, fy));
+      continue;
+    }
+    out->jac_count.push_back(int(pj.param_index.size()));
+    for (size_t j = 0; j < pj.param_index.size(); ++j) {
+      out->jac_param.push_back(pj.param_index[j]);
+      out->jac_value.push_back(rayDerivative(o, d, ax, ay, pj.dR[j] * f, pj.dt[j], fx, fy));
+    }
+  }
+}
+
+VweEvaluation VweObjective::buildRays(const EventVector& events, const TrajectoryModel& model, bool with_jacobian) {
+  // Chunk boundaries from the event count only (results independent of the threads).
+  constexpr size_t kEventsPerChunk = 1024, kMaxChunks = 16;
+  const size_t N = events.size();
+  const size_t num_chunks = std::max<size_t>(1, std::min(kMaxChunks, N / kEventsPerChunk));
+  if (chunks_.size() < num_chunks) chunks_.resize(num_chunks);
+  pool_.run(int(num_chunks), [&](int c, int) {
+    buildChunk(events, N * size_t(c) / num_chunks, N * size_t(c + 1) / num_chunks, model, with_jacobian,
+               &chunks_[size_t(c)]);
+  });
+  VweEvaluation ev;
+  rays_.clear();
+  jac_begin_.clear();
+  jac_param_.clear();
+  jac_value_.clear();
+  ray_times_.clear();
+  for (size_t c = 0; c < num_chunks; ++c) {
+    const Chunk& ch = chunks_[c];
+    ev.skipped_time += ch.skipped_time;
+    ev.skipped_behind += ch.skipped_behind;
+    rays_.insert(rays_.end(), ch.rays.begin(), ch.rays.end());
+    ray_times_.insert(ray_times_.end(), ch.times.begin(), ch.times.end());
+    if (with_jacobian) {
+      int offset = int(jac_param_.size());
+      for (int n : ch.jac_count) {
+        jac_begin_.push_back(offset);
+        offset += n;
+      }
+      jac_param_.insert(jac_param_.end(), ch.jac_param.begin(), ch.jac_param.end());
+      jac_value_.insert(jac_value_.end(), ch.jac_value.begin(), ch.jac_value.end());
+    }
+  }
+  if (with_jacobian) jac_begin_.push_back(int(jac_param_.size()));
+  ev.rays = rays_.size();
+  return ev;
+}
+
+VweEvaluation VweObjective::voteOnly(const EventVector& events, const TrajectoryModel& model) {
+  VweEvaluation ev = buildRays(events, model, false);
+  ev.votes = volume_->vote(rays_);
+  ev.contrast = volume_->contrast();
+  return ev;
+}
+
+VweEvaluation VweObjective::evaluate(const EventVector& events, const TrajectoryModel& model,
+                                     Eigen::VectorXd* gradient) {
+  VweEvaluation ev = buildRays(events, model, gradient != nullptr);
+  ev.contrast = volume_->contrastOfRays(rays_, &ev.votes, gradient ? &sensitivities_ : nullptr);
+  if (gradient) {
+    gradient->setZero(model.numParams());
+    if (model.hasPlanarJacobian()) {
+      planar_g_.resize(rays_.size());
+      for (size_t i = 0; i < rays_.size(); ++i) {
+        const Eigen::Vector4d& s = sensitivities_[i];
+        const Eigen::Vector4d* J = &jac_value_[3 * i];
+        planar_g_[i] = Vec3(s.dot(J[0]), s.dot(J[1]), s.dot(J[2]));
+      }
+      model.addPlanarGradient(ray_times_, planar_g_, gradient);
+      return ev;
+    }
+    for (size_t i = 0; i < rays_.size(); ++i) {
+      const Eigen::Vector4d& s = sensitivities_[i];
+      for (int j = jac_begin_[i]; j < jac_begin_[i + 1]; ++j) (*gradient)[jac_param_[j]] += s.dot(jac_value_[j]);
+    }
+  }
+  return ev;
+}
+
+VweObjectivePool::VweObjectivePool(const CameraModel& camera, const VolumeOptions& options)
+    : pool_((options.validate(), options.num_threads)) {
+  VolumeOptions single = options;
+  single.num_threads = 1;
+  const CameraCalibration& c = camera.calibration();
+  for (int t = 0; t < pool_.numThreads(); ++t) {
+    volumes_.push_back(std::make_unique<ProjectiveVolume>(single, c.width, c.height, c.fx, c.fy, c.cx, c.cy));
+    objectives_.push_back(std::make_unique<VweObjective>(camera, volumes_.back().get()));
+  }
+  if (pool_.numThreads() > 1) {
+    wide_volume_ = std::make_unique<ProjectiveVolume>(options, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
+    wide_objective_ = std::make_unique<VweObjective>(camera, wide_volume_.get());
+  }
+}
+
+void VweObjectivePool::run(int n, const std::function<void(int, VweObjective&)>& fn) {
+  // Whole rounds of one volume per thread; the rest (3 volumes on 2 threads: the third) one
+  // after another on all threads, instead of leaving threads idle for a round.
+  if (n <= 0) return;
+  const int T = pool_.numThreads();
+  const int spread = wide_objective_ ? n - n % T : n;
+  pool_.run(spread, [&](int i, int t) { fn(i, *objectives_[size_t(t)]); });
+  for (int i = spread; i < n; ++i) fn(i, *wide_objective_);
+}
+
+}  // namespace vwe_vo
