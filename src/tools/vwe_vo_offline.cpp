@@ -53,7 +53,7 @@ const char* kUsage =
 
 /// Duration of the ECD folder's ground truth if there is one (for the progress line), else 0.
 double groundTruthDuration(const std::string& dir) {
-  if (!fileExists(dir + "/groundtruth.txt")) return 0.0;
+  if (!vwe_vo::fileExists(dir + "/groundtruth.txt")) return 0.0;
   try {
     const vwe_vo::Trajectory3 gt = vwe_vo::readTum(dir + "/groundtruth.txt");
     return vwe_vo::dtSec(gt.back().t_ns, gt.front().t_ns);
@@ -198,10 +198,10 @@ int main(int argc, char** argv) {
       const vwe_vo::EcdCalibration c = vwe_vo::readEcdCalibration(dir + "/calib.txt");
       cfg.camera.fx = c.fx, cfg.camera.fy = c.fy, cfg.camera.cx = c.cx, cfg.camera.cy = c.cy;
       cfg.camera.distortion = {c.k1, c.k2, c.p1, c.p2, c.k3};
-      if (fileExists(dir + "/extrinsics.txt"))
+      if (vwe_vo::fileExists(dir + "/extrinsics.txt"))
         cfg.T_base_cam = vwe_vo::readPoseLine(dir + "/extrinsics.txt");
       const std::string events_path =
-          fileExists(dir + "/events.txt") ? dir + "/events.txt" : dir + "/events.txt.gz";
+          vwe_vo::fileExists(dir + "/events.txt") ? dir + "/events.txt" : dir + "/events.txt.gz";
       if (!quiet) std::fprintf(stderr, "[vwe_vo_offline] reading %s\n", events_path.c_str());
       ecd_events = events_path;
       input = {{"ecd", dir}};
