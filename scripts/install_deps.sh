@@ -13,7 +13,7 @@ if [ "$(id -u)" != 0 ]; then
 fi
 
 common_pkgs=(libceres-dev libopencv-dev libeigen3-dev libgtest-dev libbenchmark-dev
-             python3-matplotlib python3-numpy python3-yaml zlib1g-dev libyaml-cpp-dev nlohmann-json3-dev xvfb imagemagick)
+             python3-matplotlib python3-numpy python3-yaml zlib1g-dev libyaml-cpp-dev nlohmann-json3-dev xvfb imagemagick clang-format)
 
 if [ -f /opt/ros/noetic/setup.bash ]; then
   log "found /opt/ros/noetic: using it (Ubuntu 20.04 + Noetic)"
