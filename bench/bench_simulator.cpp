@@ -48,7 +48,7 @@ void simulate(benchmark::State& state, const std::string& name, double seconds, 
 void BM_IndoorCircle2s(benchmark::State& state) { simulate(state, "indoor_circle", 2.0, static_cast<int>(state.range(0))); }
 BENCHMARK(BM_IndoorCircle2s)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
 
-// The target: a 20 s indoor sequence (straights, 30 and 45 deg/s turns, stop-and-go,
+// The target: a 20 s indoor sequence (straights, 30 and 45 deg/s turns, stop-and-go,
 // a 3 s standstill) at least 3x faster than real time on 2 threads (real_time_factor <= 0.33).
 void BM_IndoorLong20s(benchmark::State& state) { simulate(state, "indoor_long", 20.0, 2); }
 BENCHMARK(BM_IndoorLong20s)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();

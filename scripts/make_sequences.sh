@@ -11,7 +11,7 @@ set +u  # ROS's setup scripts read unset variables
 source "$ROOT/scripts/ros_env.sh"
 set -u
 BIN="${VWE_WS:-$ROOT/.build/ws}/devel/lib/vwe_vo/vwe_vo_sim"
-VERSION="sim-v6"   # bump when the simulator's output changes (v6: event packets numbered in header.seq)
+VERSION="sim-v6"   # bump when the simulator's output changes: the stamp invalidates cached sequences
 FORMAT="${FORMAT:-bag}"
 OUT="$ROOT/out/sequences"
 if [ ! -x "$BIN" ]; then echo "make_sequences: $BIN not built (run make build)" >&2; exit 1; fi

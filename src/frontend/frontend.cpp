@@ -351,8 +351,8 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   const bool at_edge = (best_w - range.first < 1.5 * step && range.first > -wmax) ||
                        (range.second - best_w < 1.5 * step && range.second < wmax);
   // A flat scan around the previous yaw rate means the peak is elsewhere: a turn that began
-  // within the window (indoor_long: 60 deg/s turns held at 0 with confidence 0.022-0.031,
-  // against >= 0.035 for every correct window).
+  // within the window (such a window's confidence stays below rescan_confidence, a correct
+  // window's lies above it).
   const bool partial = range.first > -wmax || range.second < wmax;
   const bool flat = best_f > 0 && (best_f - min_f) / best_f < options_.rescan_confidence;
   if (at_edge || (partial && flat)) {
@@ -411,8 +411,8 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
     setup.deep_planes = false;
     if (one_sided_.oneSided(sub)) {
       // The prediction: the gyro's yaw rate where /dvs/imu gives one, else the previous arc's,
-      // which is stale by 8-15 deg/s at the start of a turn and smears the facade to 8.6-10 m
-      // (street_long, where the gyro's separates 11.4-15 m from 7-10.6 m).
+      // which is stale at the start of a turn and smears the facade's measured depth, so the
+      // rule separates deep from near facades less well without a gyro.
       double predicted = lost_ ? 0.0 : last_omega_;
       gyroAt(t0, t1, &predicted);
       ++stats_.evaluations;
@@ -454,9 +454,7 @@ std::vector<ArcEstimate> Frontend::process() {
       bool s1 = false, s2 = false;
       // The halves of a ramp from the previous rate through the whole window's: they rescan
       // only that far (plus the scan's half range), not the full range, where a half's spurious
-      // peak can win (street_long started 0.25 s later: halves 68 and 26 deg/s off on straight
-      // driving; starts 0-0.25 s late, back-end 0.47-2.01 -> 0.48-1.18 deg/s). indoor_long's 60 deg/s
-      // turns need the rescan within that range (without any: 3.8 deg/s).
+      // peak can win on straight driving; fast turn onsets still need the rescan within that range.
       const double far_end = 2.0 * arc.omega - previous_omega;
       WindowScan halves;
       halves.rescan_lo_rad_s = std::min(previous_omega, far_end) - options_.scan_half_range_rad_s;

@@ -1,5 +1,5 @@
-// vwe_vo_eval: accuracy of an estimated TUM trajectory against ground truth (DESIGN.md
-// "Accuracy metric"); prints a table, optionally writes JSON and a per-pair CSV for plots.
+// vwe_vo_eval: accuracy of an estimated TUM trajectory against ground truth
+// (docs/evaluation.md); prints a table, optionally writes JSON and a per-pair CSV for plots.
 #include <cmath>
 #include <fstream>
 #include <iostream>

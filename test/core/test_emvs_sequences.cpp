@@ -1,7 +1,7 @@
 // EMVS on the standard simulated sequences, scored against the depth the simulator renders for
 // each keyframe's true camera: the median relative depth error of the semi-dense points and the
-// fraction within 5 % (issue #7's accuracy figures), with the true trajectory and with the
-// pipeline's own (front-end + back-end, aligned to the truth by one Sim(3)).
+// fraction within 5 %, with the true trajectory and with the pipeline's own (front-end +
+// back-end, aligned to the truth by one Sim(3)).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -148,7 +148,7 @@ TEST(EmvsOnSequences, StreetLongWithTruePoses) {
   EXPECT_GE(s.within5, 0.60);
 }
 
-// The same on the pipeline's own trajectory (the issue asks <= 8 % median after Sim(3)).
+// The same on the pipeline's own trajectory (at most 8 % median after Sim(3)).
 TEST(EmvsOnSequences, IndoorLongWithEstimatedPoses) {
   const DepthScore s = mapEvents("indoor_long", "vwe_vo.yaml", 1.0, 4.5, Poses::kEstimated);
   ASSERT_GE(s.keyframes, 3u);

@@ -83,7 +83,7 @@ TEST(FrontendAccuracy, IndoorCircle) {
   const WindowYawRateResult w = windowYawRates(r);
   report("indoor_circle", r, w);
   ASSERT_GE(w.windows, 15u);
-  EXPECT_LE(w.rmse_deg_s, 1.0);  // measured 0.35 (sim-v4)
+  EXPECT_LE(w.rmse_deg_s, 1.0);  // measured 0.35
   EXPECT_LE(rotationRmse(r), 0.6);  // measured 0.29
   for (const ArcEstimate& a : r.arcs) EXPECT_EQ(a.status, ArcStatus::kOk);
 }
@@ -108,8 +108,8 @@ TEST(FrontendAccuracy, IndoorLongWithStandstillAndOdometry) {
   EXPECT_LE(w.median_abs_deg_s, 0.4);  // measured 0.09
   // Windows straddling the 0.3 s yaw-rate ramps of this sequence dominate the RMSE (the median
   // is small).
-  EXPECT_LE(w.rmse_deg_s, 1.0);     // measured 0.83 (2.31 with planes down to 0.4 m, sim-v3)
-  EXPECT_LE(rotationRmse(r), 0.7);  // measured 0.36 (1.12 with planes down to 0.4 m, sim-v3)
+  EXPECT_LE(w.rmse_deg_s, 1.0);     // measured 0.83
+  EXPECT_LE(rotationRmse(r), 0.7);  // measured 0.36
 }
 
 TEST(FrontendAccuracy, IndoorLongWithTheShippedConfigAndAnotherSubsamplingSeed) {

@@ -245,8 +245,8 @@ inline Trajectory3 trajectoryOf(const std::vector<geometry_msgs::PoseStamped>& p
   return out;
 }
 
-/// Rotation RMSE [deg/s] of the relative pose error over 1 s (the core evaluator, DESIGN.md
-/// "Accuracy metric"). Throws like computeRpe when the trajectories do not overlap enough.
+/// Rotation RMSE [deg/s] of the relative pose error over 1 s (the core evaluator,
+/// docs/evaluation.md). Throws like computeRpe when the trajectories do not overlap enough.
 inline double rotationRmseDegS(const Trajectory3& gt, const Trajectory3& est) {
   const EvaluationOptions options;
   return computeRpe(gt, est, options.delta_s, options).rot_rmse_deg_s;

@@ -1,4 +1,4 @@
-// End to end (issue #6): `rosbag play --clock -r 0.5` of a simulated bag (indoor_circle, 5 s,
+// End to end: `rosbag play --clock -r 0.5` of a simulated bag (indoor_circle, 5 s,
 // 0.4 m/s, 25 deg/s; generated into a temporary directory) into frontend_node + backend_node on
 // simulated time. Half rate: the two need ~0.9 + ~1.25 core-seconds per second of this data
 // (scripts/replay_check.py), more than the 2 cores of the machines this runs on; latencies below

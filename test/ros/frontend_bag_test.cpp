@@ -1,4 +1,4 @@
-// End to end (issue #4): `rosbag play --clock` of a simulated bag (indoor_circle, 5 s, 0.4 m/s,
+// End to end: `rosbag play --clock` of a simulated bag (indoor_circle, 5 s, 0.4 m/s,
 // 25 deg/s; generated into a temporary directory) into frontend_node on simulated time. The arcs
 // must come at the window rate of config/vwe_vo.yaml, keep up with the playback, and their yaw
 // rates must agree with the bag's ground truth /gt/pose (the core's per-window yaw-rate metric).
@@ -109,8 +109,7 @@ TEST(FrontendBag, YawRatesAgreeWithGroundTruth) {
   std::printf("window yaw rate vs /gt/pose: RMSE %.3f deg/s, max %.3f deg/s over %zu windows\n", r.rmse_deg_s,
               r.max_abs_deg_s, r.windows);
   // The same bag offline (vwe_vo_offline, same config) gives RMSE 0.52 deg/s, worst window
-  // 1.0 deg/s, at a true 25 deg/s; the design's probe of this objective put turning windows within
-  // 0.2-1 deg/s and straight ones within 2.5 deg/s. A wrong sign, a missed window or an arc
+  // 1.0 deg/s, at a true 25 deg/s. A wrong sign, a missed window or an arc
   // estimated on the wrong events is off by 5-50 deg/s.
   EXPECT_LT(r.rmse_deg_s, 1.5);
   EXPECT_LT(r.max_abs_deg_s, 3.0);

@@ -1,4 +1,4 @@
-// End to end (issue #8): the whole system as users start it, `roslaunch vwe_vo replay.launch
+// End to end: the whole system as users start it, `roslaunch vwe_vo replay.launch
 // bag:=... rviz:=false` (rosbag play --clock at rate 1, /use_sim_time, frontend_node,
 // backend_node, mapping_node, gt_path.py), on a simulated indoor_circle bag of 6 s that the test
 // generates into a temporary directory. The path must grow, the tf tree and the point clouds must

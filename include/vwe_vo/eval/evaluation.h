@@ -1,4 +1,4 @@
-// Trajectory accuracy against ground truth (DESIGN.md "Accuracy metric"): relative pose error
+// Trajectory accuracy against ground truth (docs/evaluation.md): relative pose error
 // over a fixed interval, yaw-rate error, ATE after Sim(3) Umeyama alignment, scale drift per
 // distance segment and the tracked fraction. Both trajectories are poses of base_link in their
 // own world frame (the frames may differ by a similarity; RPE and yaw rate do not depend on it).
@@ -98,7 +98,7 @@ RpeResult computeRpe(const Trajectory3& gt, const Trajectory3& est, double delta
 EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est,
                           const EvaluationOptions& options);
 
-/// JSON with the keys of DESIGN.md "Interfaces"; NaN becomes null. "series" only if with_series.
+/// JSON with the keys listed in docs/evaluation.md; NaN becomes null. "series" only if with_series.
 nlohmann::json toJson(const EvaluationResult& result, bool with_series = false);
 
 /// A front-end window: its interval and the yaw rate estimated for it.
@@ -107,7 +107,7 @@ struct WindowYawRate {
   double omega_rad_s = 0.0;
   bool standstill = false;  // reported as standstill: excluded, counted
 };
-/// Yaw-rate error per window (DESIGN "yaw-rate RMSE at window times"): the estimate against
+/// Yaw-rate error per window (docs/evaluation.md, "yaw rate"): the estimate against
 /// the ground truth's mean yaw rate over the same window, (yaw(t_end) - yaw(t_start)) / length.
 struct WindowYawRateResult {
   size_t windows = 0, standstill_windows = 0, outside = 0;

@@ -29,10 +29,9 @@ struct FrontendOptions {
     VolumeOptions v;
     v.grid_scale = 1.0;  // full resolution: half resolution biases slow, straight driving
     v.num_planes = 30;
-    // Nearest plane 0.8 m: with planes down to 0.4 m the rays of the floor in front of a
-    // turtlebot met in the near planes for a wrong yaw rate, a broad second maximum that pulled
-    // straight driving 4-7 deg/s off (indoor_long rotation RMSE 0.97 -> 0.50 deg/s). Deeper
-    // (1-1.2 m) helps indoor_long more but breaks indoor_straight (0.05 -> 0.74 deg/s).
+    // Nearest plane 0.8 m: the rays of the floor in front of a turtlebot meet in nearer planes
+    // at a wrong yaw rate, a broad second maximum that pulls straight driving off; much deeper
+    // planes lose the structure that slow straight driving needs.
     v.z_min_m = 0.8;
     return v;
   }
@@ -51,7 +50,7 @@ struct FrontendOptions {
   size_t full_scan_max_events = 2000;      // events the coarse grid of a full-range scan votes (0: all)
   double refine_tolerance_rad_s = 3e-4;    // 1-D refinement stops at this bracket width [rad/s]
   double standstill_event_rate_hz = 30000; // below this event rate the vehicle is standing [ev/s]
-  double standstill_speed_mps = 0.03;      // odometry speed below this means standstill [m/s] (0.02: a stopping window, 8 mm moved, came out 5 deg/s off)
+  double standstill_speed_mps = 0.03;      // odometry speed below this means standstill [m/s] (a window that barely moves has no parallax to fix omega)
   size_t min_events = 1500;                // fewer events in a window: LOW_EVENTS, omega held
   double min_confidence = 0.02;            // below: LOST, next window scans the full range
   double rescan_confidence = 0.07;         // a flatter scan around the previous omega is repeated

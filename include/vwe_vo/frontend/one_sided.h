@@ -1,12 +1,9 @@
 // Structure on one side of the street only. Under fast forward motion a yaw error is partly
-// absorbed by refocusing that side's rays in nearer planes, which biases the VWE's peak
-// (street_long before intersections: 5-12 deg/s with planes from 4.5 m, at the truth from 10 m).
+// absorbed by refocusing that side's rays in nearer planes, which biases the VWE's peak.
 // A volume whose events above the horizon are one-sided is therefore voted into deeper planes,
 // but only if that side's structure is deep enough for them: a facade nearer than the planes
-// cannot focus at the true yaw rate either (street_long's last turn: a facade 6-9 m away,
-// 2-9 deg/s off with planes from 10 m). Used by the front-end's windows. The same rule on the
-// back-end's 1 s volumes changed nothing measurable (street_long 0.474 -> 0.470 deg/s, seed 22
-// 0.626 -> 0.626): their events are rarely one-sided, and it is not applied there.
+// cannot focus at the true yaw rate either. Used by the front-end's windows only: the
+// back-end's 1 s volumes are rarely one-sided (docs/method.md).
 #pragma once
 
 #include <string>
@@ -51,8 +48,8 @@ class OneSidedRule {
   bool oneSided(const EventVector& events) const;
   /// Whether that side's structure measures at least min_depth_m: the median depth where its
   /// rays meet when `normal` (an objective on the normal planes) votes `events` warped by
-  /// `model`, a prediction of the motion. The VWE measures depth short (street_long: facades
-  /// 19-22 m away measure 11.4-15 m, 6.5-9 m away 7-10.6 m). Leaves the volume clear.
+  /// `model`, a prediction of the motion. The VWE measures depth short, so min_depth_m is
+  /// below the depth of the facades the deeper planes suit. Leaves the volume clear.
   bool deepEnough(VweObjective& normal, const EventVector& events, const TrajectoryModel& model) const;
 
  private:

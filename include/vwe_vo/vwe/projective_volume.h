@@ -17,8 +17,8 @@ namespace vwe_vo {
 ///  - kVariance: the variance over all voxels (paper eq. 3), (sum V^2 - (sum V)^2 / N) / N. It
 ///    grows with every vote that lands in the grid, focused or not, so a trajectory that keeps
 ///    more rays inside the grid scores higher: with structure on one side of the view, a yaw
-///    error that turns the rays of that side's image border into the grid is rewarded (the
-///    street's left facade pulled the yaw rate left, the right one right).
+///    error that turns the rays of that side's image border into the grid is rewarded (on a street,
+///    a left facade pulls the yaw rate left, a right one right).
 ///  - kDensityPerVote: sum V^2 / sum V, the mean density a vote meets (at a vote, the value of
 ///    the grid there): as sharp as the variance for a fixed set of votes, but votes that leave
 ///    or enter the grid do not change it unless they are more or less focused than the rest.
