@@ -11,7 +11,7 @@
 #include "vwe_vo/SplineTrajectory.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
-#include "vwe_vo/ros/event_input.h"
+#include "vwe_vo/ros/param_loader.h"
 #include "vwe_vo/ros/process_priority.h"
 #include "vwe_vo/ros/topics.h"
 
@@ -19,7 +19,8 @@ namespace vwe_vo {
 
 void BackendNodeOptions::validate() const {
   auto fail = [](const std::string& m) { throw std::invalid_argument("backend_node: " + m); };
-  if (max_queue_packets < 1) fail("~max_queue_packets must be at least 1");
+  if (max_queue_events < 1) fail("~max_queue_events must be at least 1");
+  if (max_queue_messages < 1) fail("~max_queue_messages must be at least 1");
   if (!(odom_rate_hz > 0 && odom_rate_hz <= 1000)) fail("~odom_rate_hz must be in (0, 1000] [Hz]");
   if (!(max_gap_s > 0)) fail("~max_gap_s must be positive [s]");
   if (path_max_poses < 1) fail("~path_max_poses must be at least 1");
@@ -38,7 +39,7 @@ BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
   path_pub_ = nh_.advertise<nav_msgs::Path>(topics::kPath, 2);
   if (node_options_.publish_tf) tf_ = std::make_unique<tf2_ros::TransformBroadcaster>();
   path_.header.frame_id = frames::kOdom;
-  if (!inbox_.hasCalibration())
+  if (!input_.hasCalibration())
     ROS_INFO("backend_node: waiting for %s (no ~calibration given)",
              camera_info_sub_.getTopic().c_str());
   lowerCpuPriority(node_options_.nice, "backend_node");  // before the worker: it inherits it
@@ -46,21 +47,25 @@ BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
 }
 
 BackendNode::~BackendNode() {
-  inbox_.stop();
+  input_.stop();
   if (worker_.joinable()) worker_.join();
 }
 
 void BackendNode::readParameters() {
   BackendNodeOptions& o = node_options_;
-  pnh_.param<std::string>("config", o.config_path, defaultConfigDir() + "/vwe_vo.yaml");
-  pnh_.param<std::string>("calibration", o.calibration_path, "");
-  pnh_.param("max_queue_packets", o.max_queue_packets, 4000);
-  pnh_.param("odom_rate_hz", o.odom_rate_hz, 20.0);
-  pnh_.param("max_gap_s", o.max_gap_s, 2.0);
-  pnh_.param("path_max_poses", o.path_max_poses, 2000);
-  pnh_.param("status_period_s", o.status_period_s, 10.0);
-  pnh_.param("publish_tf", o.publish_tf, true);
-  pnh_.param("nice", o.nice, 0);
+  ParamLoader params(pnh_, "backend_node");
+  params.read("config", &o.config_path);
+  params.read("calibration", &o.calibration_path);
+  params.read("max_queue_events", &o.max_queue_events);
+  params.read("max_queue_messages", &o.max_queue_messages);
+  params.read("odom_rate_hz", &o.odom_rate_hz);
+  params.read("max_gap_s", &o.max_gap_s);
+  params.read("path_max_poses", &o.path_max_poses);
+  params.read("status_period_s", &o.status_period_s);
+  params.read("publish_tf", &o.publish_tf);
+  params.read("nice", &o.nice);
+  if (o.config_path.empty()) o.config_path = defaultConfigDir() + "/vwe_vo.yaml";
+  params.finish();
   o.validate();
 
   const PipelineConfig config = loadPipelineConfig(o.config_path);
@@ -68,8 +73,10 @@ void BackendNode::readParameters() {
   backend_options_ = config.backend;
   backend_options_.validate();
   T_base_cam_ = config.T_base_cam;
+  input_.setBound(InputKind::kEvents, size_t(o.max_queue_events));
+  input_.setBound(InputKind::kArc, size_t(o.max_queue_messages));
   if (!o.calibration_path.empty()) {
-    inbox_.setCalibration(loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
+    input_.setCalibration(loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
   }
   const BackendOptions& b = backend_options_;
   ROS_INFO(
@@ -86,48 +93,22 @@ void BackendNode::readParameters() {
 // Callbacks: validate, convert, enqueue. Nothing here runs the core.
 
 void BackendNode::eventsCallback(const EventArray::ConstPtr& msg) {
-  ++packets_in_;
-  countArrivingPacket(msg->header, "backend_node", &packet_sequence_, packets_lost_);
-  int width = 0, height = 0;
-  if (!inbox_.sensorSize(&width, &height)) {
-    ++inputs_before_calibration_;
-    return;
-  }
-  Input input;
-  if (!acceptEventPacket(*msg, width, height, "backend_node", {packets_empty_, packets_wrong_size_, events_outside_msg_},
-                         &input.events))
-    return;
-  enqueue(std::move(input));
+  input_.pushEventPacket(*msg, [](EventVector&& events) {
+    Input input;
+    input.events = std::move(events);
+    return input;
+  });
 }
 
 void BackendNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
-  inbox_.acceptCameraInfo(*msg, "backend_node", camera_info_refused_);
+  input_.acceptCameraInfo(*msg);
 }
 
 void BackendNode::arcCallback(const AckermannArc::ConstPtr& msg) {
-  ++arcs_in_;
   Input input;
   input.kind = Input::Kind::kArc;
   input.arc = arcFromMsg(*msg);
-  enqueue(std::move(input));
-}
-
-bool BackendNode::enqueue(Input&& input) {
-  switch (inbox_.push(std::move(input), size_t(node_options_.max_queue_packets))) {
-    case CalibratedInbox<Input>::Push::kQueued:
-      return true;
-    case CalibratedInbox<Input>::Push::kNoCalibration:
-      ++inputs_before_calibration_;
-      return false;
-    case CalibratedInbox<Input>::Push::kFull:
-      break;
-  }
-  ++inputs_queue_full_;
-  ROS_WARN_THROTTLE(5,
-                    "backend_node: input queue full (%d messages), the back-end cannot keep up: "
-                    "message dropped (%zu so far)",
-                    node_options_.max_queue_packets, inputs_queue_full_.load());
-  return false;
+  input_.push(InputKind::kArc, std::move(input));
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -135,7 +116,7 @@ bool BackendNode::enqueue(Input&& input) {
 
 void BackendNode::workerLoop() {
   CameraCalibration calibration;
-  if (!inbox_.waitForCalibration(&calibration)) return;
+  if (!input_.waitForCalibration(&calibration)) return;
   try {
     camera_ = std::make_unique<CameraModel>(calibration);
     backend_ = std::make_unique<Backend>(backend_options_, *camera_, T_base_cam_);
@@ -146,7 +127,7 @@ void BackendNode::workerLoop() {
   last_status_ = ros::WallTime::now();
   while (true) {
     std::deque<Input> batch;
-    if (!inbox_.takeAll(&batch, std::chrono::milliseconds(100))) break;
+    if (!input_.takeAll(&batch, std::chrono::milliseconds(100))) break;
     if (!batch.empty()) {
       const ros::WallTime start = ros::WallTime::now();
       bool arcs = false;
@@ -309,15 +290,14 @@ void BackendNode::publishOdometry() {
 void BackendNode::logStatus() {
   const ros::WallTime now = ros::WallTime::now();
   const BackendStats& s = backend_->stats();
+  const NodeInputCounters in = input_.counters();
   ROS_INFO(
       "backend_node: %zu refinements (%zu reverted, %zu volumes, %.2f s in the solver), %zu "
-      "arcs in (%zu lost/low held, %zu stale), %zu events in (%zu outside, %zu late), %zu "
-      "packets (%zu lost before the node, %zu empty, %zu wrong size), %zu queue full, %zu gaps, %zu loops, %zu resets, "
-      "%zu intervals merged behind",
-      s.updates, s.rejected, s.volumes, s.solver_s, arcs_in_.load(), arcs_lost_, arcs_stale_,
-      s.events_in, s.events_outside + events_outside_msg_.load(), s.events_out_of_order,
-      packets_in_.load(), packets_lost_.load(), packets_empty_.load(), packets_wrong_size_.load(),
-      inputs_queue_full_.load(), gaps_, loops_, s.resets, refinements_merged_);
+      "arcs in (%zu lost/low held, %zu stale), %zu events in (%zu outside, %zu late), %zu gaps, %zu loops, %zu resets, "
+      "%zu intervals merged behind; input: %s",
+      s.updates, s.rejected, s.volumes, s.solver_s, in[InputKind::kArc].in, arcs_lost_, arcs_stale_,
+      s.events_in, s.events_outside + in.events_outside, s.events_out_of_order, gaps_, loops_, s.resets,
+      refinements_merged_, input_.statusLine().c_str());
   last_status_ = now;
 }
 

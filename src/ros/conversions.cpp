@@ -145,6 +145,22 @@ geometry_msgs::Transform transformToMsg(const Pose3& T) {
   return m;
 }
 
+OdometrySample odometryFromMsg(const nav_msgs::Odometry& msg) {
+  OdometrySample o;
+  o.t_ns = toNs(msg.header.stamp);
+  o.v_mps = msg.twist.twist.linear.x;
+  o.yaw_rate_rad_s = msg.twist.twist.angular.z;
+  return o;
+}
+
+GyroSample gyroFromMsg(const sensor_msgs::Imu& msg, const Pose3& T_base_cam) {
+  const Vec3 w_cam(msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z);
+  GyroSample g;
+  g.t_ns = toNs(msg.header.stamp);
+  g.yaw_rate_rad_s = (T_base_cam.linear() * w_cam).z();
+  return g;
+}
+
 AckermannArc arcToMsg(const ArcEstimate& a, const std::string& frame_id) {
   AckermannArc m;
   m.header.stamp = toRosTime(a.t_ref_ns);

@@ -7,7 +7,7 @@
 
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
-#include "vwe_vo/ros/event_input.h"
+#include "vwe_vo/ros/param_loader.h"
 #include "vwe_vo/ros/topics.h"
 
 namespace vwe_vo {
@@ -15,6 +15,7 @@ namespace vwe_vo {
 void FrameBaselineNodeOptions::validate() const {
   auto fail = [](const std::string& m) { throw std::invalid_argument("frame_baseline_node: " + m); };
   if (max_queue_frames < 1) fail("~max_queue_frames must be at least 1");
+  if (max_queue_messages < 1) fail("~max_queue_messages must be at least 1");
   if (!std::isfinite(nominal_speed_mps)) fail("~nominal_speed must be finite [m/s]");
 }
 
@@ -25,27 +26,27 @@ FrameBaselineNode::FrameBaselineNode(const ros::NodeHandle& nh, const ros::NodeH
   if (node_options_.use_odom) odom_sub_ = nh_.subscribe(topics::kOdom, 200, &FrameBaselineNode::odomCallback, this);
   odom_pub_ = nh_.advertise<nav_msgs::Odometry>(topics::kBaselineOdom, 100);
   tracks_pub_ = nh_.advertise<sensor_msgs::Image>(topics::kBaselineTracks, 2);
-  if (!have_calibration_)
+  if (!input_.hasCalibration())
     ROS_INFO("frame_baseline_node: waiting for %s (no ~calibration given)", camera_info_sub_.getTopic().c_str());
   worker_ = std::thread(&FrameBaselineNode::workerLoop, this);
 }
 
 FrameBaselineNode::~FrameBaselineNode() {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    stop_ = true;
-  }
-  cv_.notify_all();
+  input_.stop();
   if (worker_.joinable()) worker_.join();
 }
 
 void FrameBaselineNode::readParameters() {
   FrameBaselineNodeOptions& o = node_options_;
-  pnh_.param<std::string>("config", o.config_path, defaultConfigDir() + "/vwe_vo.yaml");
-  pnh_.param<std::string>("calibration", o.calibration_path, "");
-  pnh_.param("nominal_speed", o.nominal_speed_mps, -1.0);
-  pnh_.param("use_odom", o.use_odom, false);
-  pnh_.param("max_queue_frames", o.max_queue_frames, 10);
+  ParamLoader params(pnh_, "frame_baseline_node");
+  params.read("config", &o.config_path);
+  params.read("calibration", &o.calibration_path);
+  params.read("nominal_speed", &o.nominal_speed_mps);
+  params.read("use_odom", &o.use_odom);
+  params.read("max_queue_frames", &o.max_queue_frames);
+  params.read("max_queue_messages", &o.max_queue_messages);
+  if (o.config_path.empty()) o.config_path = defaultConfigDir() + "/vwe_vo.yaml";
+  params.finish();
   o.validate();
   const PipelineConfig config = loadPipelineConfig(o.config_path);
   for (const std::string& w : config.warnings) ROS_WARN("frame_baseline_node: %s", w.c_str());
@@ -53,9 +54,11 @@ void FrameBaselineNode::readParameters() {
   if (o.nominal_speed_mps >= 0) baseline_options_.nominal_speed_mps = o.nominal_speed_mps;
   baseline_options_.validate();
   T_base_cam_ = config.T_base_cam;
+  // Frames are a live stream: when the worker falls behind, the oldest queued frame goes.
+  input_.setBound(InputKind::kFrame, size_t(o.max_queue_frames), Overflow::kDropOldest);
+  input_.setBound(InputKind::kOdometry, size_t(o.max_queue_messages));
   if (!o.calibration_path.empty()) {
-    calibration_ = loadCameraCalibrationYaml(o.calibration_path);
-    have_calibration_ = true;
+    input_.setCalibration(loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
   }
   const FrameBaselineOptions& b = baseline_options_;
   ROS_INFO(
@@ -67,61 +70,36 @@ void FrameBaselineNode::readParameters() {
 }
 
 void FrameBaselineNode::imageCallback(const sensor_msgs::Image::ConstPtr& msg) {
-  ++frames_in_;
   Input input;
   input.t_ns = toNs(msg->header.stamp);
   try {
     input.image = imageFromMsg(*msg);
   } catch (const std::invalid_argument& e) {
-    ++frames_refused_;
-    ROS_ERROR_THROTTLE(5, "frame_baseline_node: frame refused: %s (%zu so far)", e.what(), frames_refused_.load());
+    input_.countRefused(InputKind::kFrame);
+    ROS_ERROR_THROTTLE(5, "frame_baseline_node: frame refused: %s (%zu so far)", e.what(),
+                       input_.counters()[InputKind::kFrame].refused);
     return;
   }
-  enqueue(std::move(input));
+  input_.push(InputKind::kFrame, std::move(input));
 }
 
 void FrameBaselineNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (acceptCameraInfo(*msg, "frame_baseline_node", &have_calibration_, &calibration_, camera_info_refused_)) {
-    if (inputs_before_calibration_ > 0)
-      ROS_INFO("frame_baseline_node: %zu inputs before the calibration were ignored", inputs_before_calibration_.load());
-    cv_.notify_all();
-  }
+  input_.acceptCameraInfo(*msg);
 }
 
 void FrameBaselineNode::odomCallback(const nav_msgs::Odometry::ConstPtr& msg) {
+  const OdometrySample sample = odometryFromMsg(*msg);
   Input input;
   input.kind = Input::Kind::kOdometry;
-  input.t_ns = toNs(msg->header.stamp);
-  input.v = msg->twist.twist.linear.x;
-  input.yaw_rate = msg->twist.twist.angular.z;
-  enqueue(std::move(input));
-}
-
-void FrameBaselineNode::enqueue(Input&& input) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (!have_calibration_) {
-    ++inputs_before_calibration_;
-    return;
-  }
-  // Frames are a live stream: when the worker falls behind, the oldest queued input goes.
-  if (queue_.size() >= static_cast<size_t>(node_options_.max_queue_frames)) {
-    queue_.pop_front();
-    ++frames_dropped_;
-    ROS_WARN_THROTTLE(5, "frame_baseline_node: queue full, oldest input dropped (%zu so far)", frames_dropped_.load());
-  }
-  queue_.push_back(std::move(input));
-  cv_.notify_one();
+  input.t_ns = sample.t_ns;
+  input.v = sample.v_mps;
+  input.yaw_rate = sample.yaw_rate_rad_s;
+  input_.push(InputKind::kOdometry, std::move(input));
 }
 
 void FrameBaselineNode::workerLoop() {
   CameraCalibration calibration;
-  {
-    std::unique_lock<std::mutex> lock(mutex_);
-    cv_.wait(lock, [this] { return stop_ || have_calibration_; });
-    if (stop_) return;
-    calibration = calibration_;
-  }
+  if (!input_.waitForCalibration(&calibration)) return;
   try {
     camera_ = std::make_unique<CameraModel>(calibration);
     baseline_ = std::make_unique<FrameBaseline>(baseline_options_, *camera_, T_base_cam_);
@@ -131,12 +109,7 @@ void FrameBaselineNode::workerLoop() {
   }
   while (true) {
     std::deque<Input> batch;
-    {
-      std::unique_lock<std::mutex> lock(mutex_);
-      cv_.wait_for(lock, std::chrono::milliseconds(100), [this] { return stop_ || !queue_.empty(); });
-      if (stop_) break;
-      batch.swap(queue_);
-    }
+    if (!input_.takeAll(&batch, std::chrono::milliseconds(100))) break;
     for (const Input& input : batch) {
       if (input.kind == Input::Kind::kOdometry) {
         baseline_->addOdometry(input.t_ns, input.v, input.yaw_rate);
@@ -152,8 +125,9 @@ void FrameBaselineNode::handleFrame(const Input& input) {
   try {
     e = baseline_->addFrame(input.t_ns, input.image);
   } catch (const std::invalid_argument& ex) {
-    ++frames_refused_;
-    ROS_ERROR_THROTTLE(5, "frame_baseline_node: frame refused: %s (%zu so far)", ex.what(), frames_refused_.load());
+    input_.countRefused(InputKind::kFrame, /*queued=*/true);
+    ROS_ERROR_THROTTLE(5, "frame_baseline_node: frame refused: %s (%zu so far)", ex.what(),
+                       input_.counters()[InputKind::kFrame].refused);
     return;
   }
   // Losing track is said when it happens (throttled to 1 s), staying lost every 5 s.

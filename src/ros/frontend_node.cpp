@@ -12,7 +12,7 @@
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/vwe/vwe_objective.h"
 #include "vwe_vo/ros/conversions.h"
-#include "vwe_vo/ros/event_input.h"
+#include "vwe_vo/ros/param_loader.h"
 #include "vwe_vo/ros/topics.h"
 
 namespace vwe_vo {
@@ -24,7 +24,8 @@ constexpr size_t kMaxRecentEvents = 2000000;
 
 void FrontendNodeOptions::validate() const {
   auto fail = [](const std::string& m) { throw std::invalid_argument("frontend_node: " + m); };
-  if (max_queue_packets < 1) fail("~max_queue_packets must be at least 1");
+  if (max_queue_events < 1) fail("~max_queue_events must be at least 1");
+  if (max_queue_messages < 1) fail("~max_queue_messages must be at least 1");
   if (!(max_latency_s > 0)) fail("~max_latency_s must be positive [s]");
   if (!(status_period_s > 0)) fail("~status_period_s must be positive [s]");
   if (!std::isfinite(nominal_speed_mps)) fail("~nominal_speed must be finite [m/s]");
@@ -55,29 +56,33 @@ FrontendNode::FrontendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh
     static_tf_ = std::make_unique<tf2_ros::StaticTransformBroadcaster>();
     static_tf_->sendTransform(T);
   }
-  if (!inbox_.hasCalibration())
+  if (!input_.hasCalibration())
     ROS_INFO("frontend_node: waiting for %s (no ~calibration given)",
              camera_info_sub_.getTopic().c_str());
   worker_ = std::thread(&FrontendNode::workerLoop, this);
 }
 
 FrontendNode::~FrontendNode() {
-  inbox_.stop();
+  input_.stop();
   if (worker_.joinable()) worker_.join();
 }
 
 void FrontendNode::readParameters() {
   FrontendNodeOptions& o = node_options_;
-  pnh_.param<std::string>("config", o.config_path, defaultConfigDir() + "/vwe_vo.yaml");
-  pnh_.param<std::string>("calibration", o.calibration_path, "");
-  pnh_.param("nominal_speed", o.nominal_speed_mps, -1.0);
-  pnh_.param("use_odom", o.use_odom, false);
-  pnh_.param("use_imu", o.use_imu, false);
-  pnh_.param("publish_static_tf", o.publish_static_tf, true);
-  pnh_.param("max_queue_packets", o.max_queue_packets, 2000);
-  pnh_.param("max_latency_s", o.max_latency_s, 1.0);
-  pnh_.param("status_period_s", o.status_period_s, 10.0);
-  pnh_.param("follow_backend", o.follow_backend, true);
+  ParamLoader params(pnh_, "frontend_node");
+  params.read("config", &o.config_path);
+  params.read("calibration", &o.calibration_path);
+  params.read("nominal_speed", &o.nominal_speed_mps);
+  params.read("use_odom", &o.use_odom);
+  params.read("use_imu", &o.use_imu);
+  params.read("publish_static_tf", &o.publish_static_tf);
+  params.read("max_queue_events", &o.max_queue_events);
+  params.read("max_queue_messages", &o.max_queue_messages);
+  params.read("max_latency_s", &o.max_latency_s);
+  params.read("status_period_s", &o.status_period_s);
+  params.read("follow_backend", &o.follow_backend);
+  if (o.config_path.empty()) o.config_path = defaultConfigDir() + "/vwe_vo.yaml";
+  params.finish();
   o.validate();
 
   const PipelineConfig config = loadPipelineConfig(o.config_path);
@@ -92,19 +97,18 @@ void FrontendNode::readParameters() {
              "more reliable at the start of a turn)");
   T_base_cam_ = config.T_base_cam;
 
+  input_.setBound(InputKind::kEvents, size_t(o.max_queue_events));
+  input_.setBound(InputKind::kOdometry, size_t(o.max_queue_messages));
+  input_.setBound(InputKind::kImu, size_t(o.max_queue_messages));
+  input_.setBound(InputKind::kTrajectory, size_t(o.max_queue_messages));
   if (!o.calibration_path.empty()) {
-    inbox_.setCalibration(loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
+    input_.setCalibration(loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
   }
 
   const FrontendOptions& f = frontend_options_;
-  ROS_INFO(
-      "frontend_node: config %s, calibration %s, nominal_speed %.3f m/s%s, use_odom %d, use_imu "
-      "%d, "
-      "max_queue_packets %d, max_latency_s %.2f",
-      o.config_path.c_str(),
-      o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(),
-      f.nominal_speed_mps, o.nominal_speed_mps >= 0 ? " (~nominal_speed)" : "", o.use_odom,
-      o.use_imu, o.max_queue_packets, o.max_latency_s);
+  ROS_INFO("frontend_node: config %s, calibration %s, nominal_speed %.3f m/s%s", o.config_path.c_str(),
+           o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(), f.nominal_speed_mps,
+           o.nominal_speed_mps >= 0 ? " (~nominal_speed)" : " (config)");
   ROS_INFO(
       "frontend_node: windows of %s, %zu events per volume, %d planes in [%.2f, %.2f] m at grid "
       "scale %.2f, contrast %s, "
@@ -121,40 +125,34 @@ void FrontendNode::readParameters() {
 // Callbacks: validate, convert, enqueue. Nothing here runs the core.
 
 void FrontendNode::eventsCallback(const EventArray::ConstPtr& msg) {
-  ++packets_in_;
-  countArrivingPacket(msg->header, "frontend_node", &packet_sequence_, packets_lost_);
-  int width = 0, height = 0;
-  if (!inbox_.sensorSize(&width, &height)) {
-    ++inputs_before_calibration_;
-    return;
-  }
-  Input input;
-  if (!acceptEventPacket(*msg, width, height, "frontend_node", {packets_empty_, packets_wrong_size_, events_outside_msg_},
-                         &input.events))
-    return;
-  enqueue(std::move(input));
+  input_.pushEventPacket(*msg, [](EventVector&& events) {
+    Input input;
+    input.events = std::move(events);
+    return input;
+  });
 }
 
 void FrontendNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
-  inbox_.acceptCameraInfo(*msg, "frontend_node", camera_info_refused_);
+  input_.acceptCameraInfo(*msg);
 }
 
 void FrontendNode::odomCallback(const nav_msgs::Odometry::ConstPtr& msg) {
+  const OdometrySample sample = odometryFromMsg(*msg);
   Input input;
   input.kind = Input::Kind::kOdometry;
-  input.t_ns = toNs(msg->header.stamp);
-  input.v = msg->twist.twist.linear.x;
-  input.yaw_rate = msg->twist.twist.angular.z;
-  enqueue(std::move(input));
+  input.t_ns = sample.t_ns;
+  input.v = sample.v_mps;
+  input.yaw_rate = sample.yaw_rate_rad_s;
+  input_.push(InputKind::kOdometry, std::move(input));
 }
 
 void FrontendNode::imuCallback(const sensor_msgs::Imu::ConstPtr& msg) {
-  const Vec3 w_cam(msg->angular_velocity.x, msg->angular_velocity.y, msg->angular_velocity.z);
+  const GyroSample sample = gyroFromMsg(*msg, T_base_cam_);
   Input input;
   input.kind = Input::Kind::kGyro;
-  input.t_ns = toNs(msg->header.stamp);
-  input.yaw_rate = (T_base_cam_.linear() * w_cam).z();  // yaw rate of base_link
-  enqueue(std::move(input));
+  input.t_ns = sample.t_ns;
+  input.yaw_rate = sample.yaw_rate_rad_s;  // yaw rate of base_link
+  input_.push(InputKind::kImu, std::move(input));
 }
 
 void FrontendNode::trajectoryCallback(const SplineTrajectory::ConstPtr& msg) {
@@ -163,32 +161,13 @@ void FrontendNode::trajectoryCallback(const SplineTrajectory::ConstPtr& msg) {
   try {
     input.spline = std::make_shared<const BSpline>(splineFromMsg(*msg));
   } catch (const std::invalid_argument& e) {
-    ++trajectories_refused_;
+    input_.countRefused(InputKind::kTrajectory);
     ROS_WARN_THROTTLE(10, "frontend_node: SplineTrajectory refused: %s (%zu so far)", e.what(),
-                      trajectories_refused_.load());
+                      input_.counters()[InputKind::kTrajectory].refused);
     return;
   }
   input.t_ns = toNs(msg->valid_to);
-  enqueue(std::move(input));
-}
-
-bool FrontendNode::enqueue(Input&& input) {
-  switch (inbox_.push(std::move(input), size_t(node_options_.max_queue_packets))) {
-    case CalibratedInbox<Input>::Push::kQueued:
-      return true;
-    case CalibratedInbox<Input>::Push::kNoCalibration:
-      ++inputs_before_calibration_;
-      return false;
-    case CalibratedInbox<Input>::Push::kFull:
-      break;
-  }
-  ++packets_queue_full_;
-  ROS_WARN_THROTTLE(5,
-                    "frontend_node: input queue full (%d messages), the front-end cannot keep up: "
-                    "message dropped "
-                    "(%zu so far)",
-                    node_options_.max_queue_packets, packets_queue_full_.load());
-  return false;
+  input_.push(InputKind::kTrajectory, std::move(input));
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -196,7 +175,7 @@ bool FrontendNode::enqueue(Input&& input) {
 
 void FrontendNode::workerLoop() {
   CameraCalibration calibration;
-  if (!inbox_.waitForCalibration(&calibration)) return;
+  if (!input_.waitForCalibration(&calibration)) return;
   try {
     camera_ = std::make_unique<CameraModel>(calibration);
     frontend_ = std::make_unique<Frontend>(frontend_options_, *camera_, T_base_cam_);
@@ -207,7 +186,7 @@ void FrontendNode::workerLoop() {
   last_status_ = ros::WallTime::now();
   while (true) {
     std::deque<Input> batch;
-    if (!inbox_.takeAll(&batch, std::chrono::milliseconds(100))) break;
+    if (!input_.takeAll(&batch, std::chrono::milliseconds(100))) break;
     if (!batch.empty()) {
       const ros::WallTime start = ros::WallTime::now();
       for (const Input& input : batch) {
@@ -364,14 +343,12 @@ void FrontendNode::logStatus() {
   ROS_INFO(
       "frontend_node: %zu windows (%zu split in two) (%zu one-sided, %zu one-sided but near) -> %zu arcs (%zu ok, %zu standstill, %zu lost, %zu "
       "low events), %zu windows skipped behind; "
-      "%.0f events/s in, %zu outside the sensor, %zu late; packets %zu (%zu lost before the node, %zu "
-      "empty, %zu wrong size, %zu queue full); %zu resets; real-time factor %.3f",
+      "%.0f events/s in, %zu outside the sensor, %zu late; %zu resets; real-time factor %.3f; input: %s",
       s.windows, s.windows_split, s.windows_one_sided, s.windows_one_sided_near, windows_ok_ + windows_standstill_ + windows_lost_ + windows_low_, windows_ok_,
       windows_standstill_, windows_lost_, windows_low_, s.windows_dropped,
       double(s.events_in - last_status_events_) / wall_s,
-      s.events_outside + events_outside_msg_.load(), s.events_out_of_order, packets_in_.load(),
-      packets_lost_.load(), packets_empty_.load(), packets_wrong_size_.load(), packets_queue_full_.load(), s.resets,
-      processed_data_s_ > 0 ? busy_wall_s_ / processed_data_s_ : 0.0);
+      s.events_outside + input_.counters().events_outside, s.events_out_of_order, s.resets,
+      processed_data_s_ > 0 ? busy_wall_s_ / processed_data_s_ : 0.0, input_.statusLine().c_str());
   last_status_ = now;
   last_status_events_ = s.events_in;
 }

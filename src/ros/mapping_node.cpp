@@ -11,7 +11,7 @@
 
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
-#include "vwe_vo/ros/event_input.h"
+#include "vwe_vo/ros/param_loader.h"
 #include "vwe_vo/ros/process_priority.h"
 #include "vwe_vo/ros/topics.h"
 
@@ -24,7 +24,7 @@ void MappingNodeOptions::validate() const {
     fail("~trajectory_margin_s must be finite and >= 0 [s]");
   if (!(keyframe_timeout_s >= 0)) fail("~keyframe_timeout_s must be >= 0 [s]");
   if (!(max_backwards_jump_s > 0)) fail("~max_backwards_jump_s must be positive [s]");
-  if (max_queue_packets < 1) fail("~max_queue_packets must be at least 1");
+  if (max_queue_events < 1) fail("~max_queue_events must be at least 1");
   if (!(status_period_s > 0)) fail("~status_period_s must be positive [s]");
   if (nice < 0 || nice > 19) fail("~nice must be in [0, 19]");
 }
@@ -38,7 +38,7 @@ MappingNode::MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
   points_pub_ = nh_.advertise<sensor_msgs::PointCloud2>(topics::kMapPoints, 10);
   cloud_pub_ = nh_.advertise<sensor_msgs::PointCloud2>(topics::kMapCloud, 1, /*latch=*/true);
   depth_pub_ = nh_.advertise<sensor_msgs::Image>(topics::kMapDepth, 2);
-  if (!have_calibration_)
+  if (!input_.hasCalibration())
     ROS_INFO("mapping_node: waiting for %s (no ~calibration given)",
              camera_info_sub_.getTopic().c_str());
   lowerCpuPriority(node_options_.nice, "mapping_node");  // before the worker: it inherits it
@@ -46,25 +46,24 @@ MappingNode::MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
 }
 
 MappingNode::~MappingNode() {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    stop_ = true;
-  }
-  cv_.notify_all();
+  input_.stop();
   if (worker_.joinable()) worker_.join();
 }
 
 void MappingNode::readParameters() {
   MappingNodeOptions& o = node_options_;
-  pnh_.param<std::string>("config", o.config_path, defaultConfigDir() + "/vwe_vo.yaml");
-  pnh_.param<std::string>("calibration", o.calibration_path, "");
-  pnh_.param("cloud_period_s", o.cloud_period_s, 2.0);
-  pnh_.param("trajectory_margin_s", o.trajectory_margin_s, 0.2);
-  pnh_.param("keyframe_timeout_s", o.keyframe_timeout_s, 3.0);
-  pnh_.param("max_backwards_jump_s", o.max_backwards_jump_s, 0.5);
-  pnh_.param("max_queue_packets", o.max_queue_packets, 5000);  // ~5 s of the driver at 1 kHz: bursts of keyframes
-  pnh_.param("status_period_s", o.status_period_s, 10.0);
-  pnh_.param("nice", o.nice, 0);
+  ParamLoader params(pnh_, "mapping_node");
+  params.read("config", &o.config_path);
+  params.read("calibration", &o.calibration_path);
+  params.read("cloud_period_s", &o.cloud_period_s);
+  params.read("trajectory_margin_s", &o.trajectory_margin_s);
+  params.read("keyframe_timeout_s", &o.keyframe_timeout_s);
+  params.read("max_backwards_jump_s", &o.max_backwards_jump_s);
+  params.read("max_queue_events", &o.max_queue_events);
+  params.read("status_period_s", &o.status_period_s);
+  params.read("nice", &o.nice);
+  if (o.config_path.empty()) o.config_path = defaultConfigDir() + "/vwe_vo.yaml";
+  params.finish();
   o.validate();
 
   const PipelineConfig config = loadPipelineConfig(o.config_path);
@@ -75,18 +74,15 @@ void MappingNode::readParameters() {
   global_map_options_.validate();
   T_base_cam_ = config.T_base_cam;
 
+  input_.setBound(InputKind::kEvents, size_t(o.max_queue_events));
+  input_.setBound(InputKind::kTrajectory, 1, Overflow::kReplaceOldest);
   if (!o.calibration_path.empty()) {
-    calibration_ = loadCameraCalibrationYaml(o.calibration_path);  // throws naming file and field
-    have_calibration_ = true;
+    input_.setCalibration(loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
   }
 
   const EmvsOptions& e = emvs_options_;
-  ROS_INFO(
-      "mapping_node: config %s, calibration %s, cloud_period_s %.2f, trajectory_margin_s %.2f, "
-      "keyframe_timeout_s %.1f, max_queue_packets %d",
-      o.config_path.c_str(),
-      o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(),
-      o.cloud_period_s, o.trajectory_margin_s, o.keyframe_timeout_s, o.max_queue_packets);
+  ROS_INFO("mapping_node: config %s, calibration %s", o.config_path.c_str(),
+           o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str());
   ROS_INFO(
       "mapping_node: keyframe every %.2f m or %.1f deg or %zu events; DSI %d planes in [%.2f, "
       "%.2f] m at grid scale %.2f; %zu events may wait for the trajectory; at most %.0f events/s "
@@ -100,59 +96,32 @@ void MappingNode::readParameters() {
 // Callbacks: validate, convert, enqueue. Nothing here runs the core.
 
 void MappingNode::eventsCallback(const EventArray::ConstPtr& msg) {
-  ++packets_in_;
-  countArrivingPacket(msg->header, "mapping_node", &packet_sequence_, packets_lost_);
-  int width = 0, height = 0;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (!have_calibration_) {
-      ++packets_before_calibration_;
-      return;
-    }
-    width = calibration_.width;
-    height = calibration_.height;
-  }
-  EventVector events;
-  if (!acceptEventPacket(*msg, width, height, "mapping_node", {packets_empty_, packets_wrong_size_, events_outside_msg_},
-                         &events))
-    return;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (queue_.size() < size_t(node_options_.max_queue_packets)) {
-      queue_.push_back(std::move(events));
-      cv_.notify_one();
-      return;
-    }
-  }
-  ++packets_queue_full_;
-  ROS_WARN_THROTTLE(5,
-                    "mapping_node: input queue full (%d packets), the mapper cannot keep up: "
-                    "packet dropped (%zu so far)",
-                    node_options_.max_queue_packets, packets_queue_full_.load());
+  input_.pushEventPacket(*msg, [](EventVector&& events) {
+    Input input;
+    input.events = std::move(events);
+    return input;
+  });
 }
 
 void MappingNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (acceptCameraInfo(*msg, "mapping_node", &have_calibration_, &calibration_, camera_info_refused_)) cv_.notify_all();
+  input_.acceptCameraInfo(*msg);
 }
 
 void MappingNode::trajectoryCallback(const SplineTrajectory::ConstPtr& msg) {
-  ++splines_in_;
-  std::shared_ptr<BSpline> spline;
+  Input input;
   try {
-    spline = std::make_shared<BSpline>(splineFromMsg(*msg));
+    input.spline = std::make_shared<const BSpline>(splineFromMsg(*msg));
   } catch (const std::invalid_argument& e) {
-    ++splines_refused_;
-    ROS_WARN_THROTTLE(5, "mapping_node: trajectory refused: %s (%zu of %zu refused so far)",
-                      e.what(), splines_refused_.load(), splines_in_.load());
+    input_.countRefused(InputKind::kTrajectory);
+    const InputKindCounters c = input_.counters()[InputKind::kTrajectory];
+    ROS_WARN_THROTTLE(5, "mapping_node: trajectory refused: %s (%zu of %zu refused so far)", e.what(), c.refused,
+                      c.in);
     return;
   }
   if (!msg->header.frame_id.empty() && msg->header.frame_id != frames::kOdom)
     ROS_WARN_THROTTLE(30, "mapping_node: trajectory in frame '%s', used as '%s'",
                       msg->header.frame_id.c_str(), frames::kOdom);
-  std::lock_guard<std::mutex> lock(mutex_);
-  new_spline_ = std::move(spline);  // the newest replaces any not yet taken
-  cv_.notify_one();
+  input_.push(InputKind::kTrajectory, std::move(input));
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -160,12 +129,7 @@ void MappingNode::trajectoryCallback(const SplineTrajectory::ConstPtr& msg) {
 
 void MappingNode::workerLoop() {
   CameraCalibration calibration;
-  {
-    std::unique_lock<std::mutex> lock(mutex_);
-    cv_.wait(lock, [this] { return stop_ || have_calibration_; });
-    if (stop_) return;
-    calibration = calibration_;
-  }
+  if (!input_.waitForCalibration(&calibration)) return;
   try {
     camera_ = std::make_unique<CameraModel>(calibration);
     mapper_ = std::make_unique<EmvsMapper>(emvs_options_, *camera_);
@@ -176,15 +140,15 @@ void MappingNode::workerLoop() {
   }
   last_events_wall_ = last_cloud_wall_ = last_status_ = ros::WallTime::now();
   while (true) {
+    std::deque<Input> inputs;
+    if (!input_.takeAll(&inputs, std::chrono::milliseconds(100))) break;
     std::deque<EventVector> batch;
-    std::shared_ptr<const BSpline> spline;
-    {
-      std::unique_lock<std::mutex> lock(mutex_);
-      cv_.wait_for(lock, std::chrono::milliseconds(100),
-                   [this] { return stop_ || !queue_.empty() || new_spline_; });
-      if (stop_) break;
-      batch.swap(queue_);
-      spline.swap(new_spline_);
+    std::shared_ptr<const BSpline> spline;  // the newest trajectory of the batch
+    for (Input& input : inputs) {
+      if (input.spline)
+        spline = std::move(input.spline);
+      else
+        batch.push_back(std::move(input.events));
     }
     const ros::WallTime start = ros::WallTime::now();
     try {
@@ -317,14 +281,10 @@ void MappingNode::logStatus() {
   ROS_INFO(
       "mapping_node: %zu keyframes (%zu empty), global map %zu points (%zu dropped); events: %zu "
       "voted (%zu thinned to the rate limit), %zu waiting, %zu not covered by the trajectory, %zu non-finite pose, %zu late, %zu "
-      "dropped waiting; packets %zu (%zu lost before the node, %zu empty, %zu wrong size, %zu queue full, %zu before the "
-      "calibration); trajectories "
-      "%zu (%zu refused); %zu resets; busy %.1f s",
+      "dropped waiting; %zu resets; busy %.1f s; input: %s",
       keyframes_, keyframes_empty_, map_->size(), map_->dropped(), counts_.voted, mapper_->thinned(),
       mapper_->pendingEvents(), counts_.skipped_time, counts_.skipped_nan,
-      mapper_->droppedOutOfOrder(), mapper_->droppedPending(), packets_in_.load(),
-      packets_lost_.load(), packets_empty_.load(), packets_wrong_size_.load(), packets_queue_full_.load(),
-      packets_before_calibration_.load(), splines_in_.load(), splines_refused_.load(), resets_, busy_wall_s_);
+      mapper_->droppedOutOfOrder(), mapper_->droppedPending(), resets_, busy_wall_s_, input_.statusLine().c_str());
   last_status_ = now;
 }
 

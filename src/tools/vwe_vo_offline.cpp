@@ -259,14 +259,14 @@ int main(int argc, char** argv) {
           ++packets;
           progress.update(pipeline, total);
         } else if (use_odom && m.getTopic() == odom_topic) {
-          if (const auto o = m.instantiate<nav_msgs::Odometry>())
-            pipeline.addOdometry(vwe_vo::toNs(o->header.stamp), o->twist.twist.linear.x,
-                                 o->twist.twist.angular.z);
+          if (const auto o = m.instantiate<nav_msgs::Odometry>()) {
+            const vwe_vo::OdometrySample s = vwe_vo::odometryFromMsg(*o);
+            pipeline.addOdometry(s.t_ns, s.v_mps, s.yaw_rate_rad_s);
+          }
         } else if (m.getTopic() == imu_topic) {
           if (const auto imu = m.instantiate<sensor_msgs::Imu>()) {
-            const vwe_vo::Vec3 w_C(imu->angular_velocity.x, imu->angular_velocity.y,
-                                   imu->angular_velocity.z);
-            pipeline.addGyro(vwe_vo::toNs(imu->header.stamp), (cfg.T_base_cam.linear() * w_C).z());
+            const vwe_vo::GyroSample g = vwe_vo::gyroFromMsg(*imu, cfg.T_base_cam);
+            pipeline.addGyro(g.t_ns, g.yaw_rate_rad_s);
           }
         }
       }

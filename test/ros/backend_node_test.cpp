@@ -72,19 +72,38 @@ class BackendRecorder {
   std::vector<rosgraph_msgs::Log> logs_;
 };
 
-std::unique_ptr<Harness> harness;
-std::unique_ptr<BackendRecorder> recorder;
-std::unique_ptr<tf2_ros::Buffer> tf_buffer;
-std::unique_ptr<tf2_ros::TransformListener> tf_listener;
-
 }  // namespace
 
-TEST(BackendNode, PublishesTheRefinedSplineOdometryAndTf) {
-  ASSERT_TRUE(harness->waitForNode(20.0)) << "frontend_node did not connect";
-  ASSERT_TRUE(recorder->waitForNode(20.0)) << "backend_node did not connect";
-  harness->publishCameraInfo(harness->validCameraInfo());
+/// One frontend_node + backend_node pair for every test, connected and calibrated once; main()
+/// destroys the recorders after the spinner stopped.
+class BackendNode : public HarnessTest {
+ public:
+  inline static std::unique_ptr<BackendRecorder> recorder;
+  inline static std::unique_ptr<tf2_ros::Buffer> tf_buffer;
+  inline static std::unique_ptr<tf2_ros::TransformListener> tf_listener;
+
+ protected:
+  static void SetUpTestSuite() {
+    HarnessTest::SetUpTestSuite();
+    if (recorder) return;
+    recorder = std::make_unique<BackendRecorder>();
+    tf_buffer = std::make_unique<tf2_ros::Buffer>(ros::Duration(120.0));
+    tf_listener = std::make_unique<tf2_ros::TransformListener>(*tf_buffer);
+    backend_connected_ = recorder->waitForNode(20.0);
+    if (connected_ && backend_connected_) harness->publishCameraInfo(harness->validCameraInfo());
+  }
+  void SetUp() override {
+    HarnessTest::SetUp();
+    ASSERT_TRUE(backend_connected_) << "backend_node did not connect";
+  }
+  inline static bool backend_connected_ = false;
+};
+
+TEST_F(BackendNode, PublishesTheRefinedSplineOdometryAndTf) {
+  const size_t trajectories_before = recorder->trajectories().size();
+  const size_t odoms_before = recorder->odometry().size();
   const auto [t0, t1] = harness->stream(4.0);
-  ASSERT_TRUE(recorder->waitForTrajectories(2, 60.0)) << "fewer than 2 refinements published";
+  ASSERT_TRUE(recorder->waitForTrajectories(trajectories_before + 2, 60.0)) << "fewer than 2 refinements published";
 
   const SplineTrajectory traj = recorder->trajectories().back();
   EXPECT_EQ(traj.header.frame_id, "odom");
@@ -99,7 +118,8 @@ TEST(BackendNode, PublishesTheRefinedSplineOdometryAndTf) {
   const double u_mid = 0.5 * (spline.validFrom() + spline.validTo());
   EXPECT_NEAR(spline.velocity(u_mid).norm(), kV, 0.1);
 
-  const std::vector<nav_msgs::Odometry> odoms = recorder->odometry();
+  const std::vector<nav_msgs::Odometry> all_odoms = recorder->odometry();
+  const std::vector<nav_msgs::Odometry> odoms(all_odoms.begin() + long(odoms_before), all_odoms.end());
   ASSERT_GE(odoms.size(), 20u);
   for (size_t i = 1; i < odoms.size(); ++i)
     ASSERT_GT(odoms[i].header.stamp, odoms[i - 1].header.stamp);
@@ -130,18 +150,20 @@ TEST(BackendNode, PublishesTheRefinedSplineOdometryAndTf) {
   (void)t1;
 }
 
-TEST(BackendNode, LoopedStreamResetsAndRefinementsKeepComing) {
+TEST_F(BackendNode, LoopedStreamResetsAndRefinementsKeepComing) {
+  harness->stream(2.0);  // data to loop back from, whatever ran before
   const size_t before = recorder->trajectories().size();
   harness->rewindClock(10.0);
   harness->stream(3.5);
-  EXPECT_TRUE(recorder->logged("back-end reset", rosgraph_msgs::Log::WARN, 20.0));
+  EXPECT_TRUE(recorder->logged("a looped bag?): back-end reset", rosgraph_msgs::Log::WARN, 20.0));
   EXPECT_TRUE(recorder->waitForTrajectories(before + 1, 60.0)) << "no refinement after the loop";
   // The trajectory restarted near the identity: the newest odometry is within the looped data.
   const nav_msgs::Odometry last = recorder->odometry().back();
   EXPECT_LT(poseFromMsg(last.pose.pose).translation().norm(), 2.0 * kV * 3.5);
 }
 
-TEST(BackendNode, MultiSecondGapWithoutEventsResetsAndRecovers) {
+TEST_F(BackendNode, MultiSecondGapWithoutEventsResetsAndRecovers) {
+  harness->stream(1.0);  // data before the gap, whatever ran before
   const size_t before = recorder->trajectories().size();
   harness->rewindClock(-4.0);  // 4 s without events
   harness->stream(3.5);
@@ -157,16 +179,12 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "backend_node_test");
   ros::AsyncSpinner spinner(2);
   spinner.start();
-  harness = std::make_unique<Harness>();
-  recorder = std::make_unique<BackendRecorder>();
-  tf_buffer = std::make_unique<tf2_ros::Buffer>(ros::Duration(120.0));
-  tf_listener = std::make_unique<tf2_ros::TransformListener>(*tf_buffer);
   const int result = RUN_ALL_TESTS();
-  tf_listener.reset();
-  tf_buffer.reset();
-  recorder.reset();
-  harness.reset();
-  spinner.stop();
+  spinner.stop();  // no callback may run while the recorders (their subscribers, mutexes) are destroyed
+  BackendNode::tf_listener.reset();
+  BackendNode::tf_buffer.reset();
+  BackendNode::recorder.reset();
+  HarnessTest::harness.reset();
   ros::shutdown();
   return result;
 }

@@ -265,15 +265,14 @@ inline double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-/// main() of the replay rostests: gtest with ROS and a two-thread spinner; `release` frees what
-/// the tests kept (subscribers, child processes) while the spinner still runs.
-inline int runReplayTests(int argc, char** argv, const char* node_name, const std::function<void()>& release) {
+/// main() of the replay rostests: gtest with ROS and a two-thread spinner. Each suite plays its
+/// bag in SetUpTestSuite and frees what it kept in TearDownTestSuite, while the spinner runs.
+inline int runReplayTests(int argc, char** argv, const char* node_name) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, node_name);
   ros::AsyncSpinner spinner(2);
   spinner.start();
   const int result = RUN_ALL_TESTS();
-  release();
   spinner.stop();
   ros::shutdown();
   return result;

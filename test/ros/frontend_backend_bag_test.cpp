@@ -45,8 +45,8 @@ struct Replay {
   std::vector<TfSample> tf_samples;
   std::string play_log;
   int play_exit_code = -1;
+  std::string error;  // why the bag could not be played (empty: it was)
 };
-std::unique_ptr<Replay> replay;  // played by the first test, inspected by the others
 
 TfSample lookAtTf(const tf2_ros::Buffer& tf) {
   TfSample s;
@@ -65,8 +65,7 @@ TfSample lookAtTf(const tf2_ros::Buffer& tf) {
   return s;
 }
 
-void playBag(ros::NodeHandle& nh) {
-  replay = std::make_unique<Replay>();
+void playBag(ros::NodeHandle& nh, Replay* replay) {
   replay->dir = std::make_unique<TempDir>();
   replay->bag = simulateBag(replay->dir->path(), "indoor_circle", kBagDurationS);
   TopicRecorder<SplineTrajectory> trajectories(nh, topics::kTrajectory);
@@ -99,19 +98,33 @@ void playBag(ros::NodeHandle& nh) {
   replay->play_log = tailOf(play.logPath());
 }
 
-double eventsStartS() { return nsToSec(replay->bag.gt.front().t_ns); }
+double eventsStartS(const Replay& replay) { return nsToSec(replay.bag.gt.front().t_ns); }
 
 }  // namespace
 
-// Plays the bag (the tests below inspect what was recorded).
-TEST(FrontendBackendBag, BagPlaysCompletely) {
-  ros::NodeHandle nh;
-  ASSERT_NO_THROW(playBag(nh));
+/// The bag is played once for the suite; every test inspects what was recorded.
+class FrontendBackendBag : public testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    replay = std::make_unique<Replay>();
+    ros::NodeHandle nh;
+    try {
+      playBag(nh, replay.get());
+    } catch (const std::exception& e) {
+      replay->error = e.what();
+    }
+  }
+  static void TearDownTestSuite() { replay.reset(); }
+  void SetUp() override { ASSERT_TRUE(replay->error.empty()) << replay->error; }
+  static std::unique_ptr<Replay> replay;
+};
+std::unique_ptr<Replay> FrontendBackendBag::replay;
+
+TEST_F(FrontendBackendBag, PlaybackExitedCleanly) {
   EXPECT_EQ(replay->play_exit_code, 0) << replay->play_log;
 }
 
-TEST(FrontendBackendBag, TrajectoryComesOncePerUpdateInterval) {
-  ASSERT_TRUE(replay);
+TEST_F(FrontendBackendBag, TrajectoryComesOncePerUpdateInterval) {
   const BackendOptions b = loadPipelineConfig(defaultConfigDir() + "/vwe_vo.yaml").backend;
   const auto& trajs = replay->trajectories;
   // A refinement once update_interval_s (1 s) of new arcs are in: with 0.3 s windows every 4th
@@ -137,16 +150,15 @@ TEST(FrontendBackendBag, TrajectoryComesOncePerUpdateInterval) {
   }
 }
 
-TEST(FrontendBackendBag, OdometryAndTfAtTheOdomRate) {
-  ASSERT_TRUE(replay);
+TEST_F(FrontendBackendBag, OdometryAndTfAtTheOdomRate) {
   const auto& odoms = replay->odoms;
   ASSERT_GE(odoms.size(), 2u);
   const double step_s = 1.0 / kOdomRateHz;
   for (size_t i = 1; i < odoms.size(); ++i)  // every step of 50 ms in data time, none missing
     ASSERT_NEAR((odoms[i].msg.header.stamp - odoms[i - 1].msg.header.stamp).toSec(), step_s, 1e-3) << "odom " << i;
   // From the first window to the last: 5 s less one window at either end, at 20 Hz.
-  const double first_s = odoms.front().msg.header.stamp.toSec() - eventsStartS();
-  const double last_s = odoms.back().msg.header.stamp.toSec() - eventsStartS();
+  const double first_s = odoms.front().msg.header.stamp.toSec() - eventsStartS(*replay);
+  const double last_s = odoms.back().msg.header.stamp.toSec() - eventsStartS(*replay);
   EXPECT_LT(first_s, 0.7);
   EXPECT_GT(last_s, kBagDurationS - 0.7);
   EXPECT_GE(double(odoms.size()), (kBagDurationS - 1.4) * kOdomRateHz);
@@ -175,8 +187,7 @@ TEST(FrontendBackendBag, OdometryAndTfAtTheOdomRate) {
   }
 }
 
-TEST(FrontendBackendBag, TfTreeAnswersAtRecentTimesWhileItPlays) {
-  ASSERT_TRUE(replay);
+TEST_F(FrontendBackendBag, TfTreeAnswersAtRecentTimesWhileItPlays) {
   const Pose3 T_base_cam = loadPipelineConfig(defaultConfigDir() + "/vwe_vo.yaml").T_base_cam;
   const auto& samples = replay->tf_samples;
   // About one look per 0.5 s (wall) of the 10 s of playing once the odometry has started.
@@ -196,5 +207,5 @@ TEST(FrontendBackendBag, TfTreeAnswersAtRecentTimesWhileItPlays) {
 }
 
 int main(int argc, char** argv) {
-  return runReplayTests(argc, argv, "frontend_backend_bag_test", [] { replay.reset(); });
+  return runReplayTests(argc, argv, "frontend_backend_bag_test");
 }

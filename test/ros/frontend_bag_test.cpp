@@ -24,11 +24,10 @@ struct Replay {
   std::vector<geometry_msgs::PoseStamped> gt;
   std::string play_log;
   int play_exit_code = -1;
+  std::string error;  // why the bag could not be played (empty: it was)
 };
-std::unique_ptr<Replay> replay;  // played by the first test, inspected by the others
 
-void playBag(ros::NodeHandle& nh) {
-  replay = std::make_unique<Replay>();
+void playBag(ros::NodeHandle& nh, Replay* replay) {
   replay->dir = std::make_unique<TempDir>();
   replay->bag = simulateBag(replay->dir->path(), "indoor_circle", kBagDurationS);
   TopicRecorder<AckermannArc> arcs(nh, topics::kArcs);
@@ -52,18 +51,32 @@ double windowDurationS() {
 
 }  // namespace
 
-// Plays the bag (the tests below inspect what was recorded).
-TEST(FrontendBag, BagPlaysCompletely) {
-  ros::NodeHandle nh;
-  ASSERT_NO_THROW(playBag(nh));
+/// The bag is played once for the suite; every test inspects what was recorded.
+class FrontendBag : public testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    replay = std::make_unique<Replay>();
+    ros::NodeHandle nh;
+    try {
+      playBag(nh, replay.get());
+    } catch (const std::exception& e) {
+      replay->error = e.what();
+    }
+  }
+  static void TearDownTestSuite() { replay.reset(); }
+  void SetUp() override { ASSERT_TRUE(replay->error.empty()) << replay->error; }
+  static std::unique_ptr<Replay> replay;
+};
+std::unique_ptr<Replay> FrontendBag::replay;
+
+TEST_F(FrontendBag, PlaybackReachedTheEnd) {
   EXPECT_EQ(replay->play_exit_code, 0) << replay->play_log;
   // /gt/pose at 200 Hz over the whole bag: the playback reached the end.
   ASSERT_GE(replay->gt.size(), size_t(0.95 * 200 * kBagDurationS));
   EXPECT_NEAR(toNs(replay->gt.back().header.stamp), replay->bag.gt.back().t_ns, secToNs(0.01));
 }
 
-TEST(FrontendBag, ArcsComeAtTheWindowRateAndKeepUp) {
-  ASSERT_TRUE(replay);
+TEST_F(FrontendBag, ArcsComeAtTheWindowRateAndKeepUp) {
   const double window_s = windowDurationS();
   const auto& arcs = replay->arcs;
   // Windows [t, t + 0.3 s) tile the 5 s of events back to back: 16 complete windows. The first
@@ -94,8 +107,7 @@ TEST(FrontendBag, ArcsComeAtTheWindowRateAndKeepUp) {
   EXPECT_GT(dtSec(toNs(arcs.back().msg.t_end), replay->bag.gt.front().t_ns), kBagDurationS - 2 * window_s);
 }
 
-TEST(FrontendBag, YawRatesAgreeWithGroundTruth) {
-  ASSERT_TRUE(replay);
+TEST_F(FrontendBag, YawRatesAgreeWithGroundTruth) {
   const Trajectory3 gt = trajectoryOf(replay->gt);
   ASSERT_GT(gt.size(), 100u);
   std::vector<WindowYawRate> windows;
@@ -116,5 +128,5 @@ TEST(FrontendBag, YawRatesAgreeWithGroundTruth) {
 }
 
 int main(int argc, char** argv) {
-  return runReplayTests(argc, argv, "frontend_bag_test", [] { replay.reset(); });
+  return runReplayTests(argc, argv, "frontend_bag_test");
 }

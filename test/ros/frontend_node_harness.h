@@ -170,6 +170,15 @@ class Harness {
     return test::waitForLog(mutex_, logs_, text, level, timeout_s);
   }
   void rewindClock(double dt_s) { clock_ns_ -= secToNs(dt_s); }
+  /// The newest value of a counter of the node's input status line (-1: none yet).
+  long inputCounter(const std::string& kind, const std::string& key) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return test::inputCounter(logs_, kind, key);
+  }
+  /// True once that counter exceeds `above` (the node logs its status every ~status_period_s).
+  bool inputCounterAbove(const std::string& kind, const std::string& key, long above, double timeout_s = 10.0) {
+    return test::waitForInputCounterAbove(mutex_, logs_, kind, key, above, timeout_s);
+  }
 
  private:
   std::vector<AckermannArc> select(int64_t t0, int64_t t1) {
@@ -209,6 +218,23 @@ class Harness {
   std::vector<nav_msgs::Odometry> odoms_;
   std::vector<sensor_msgs::Image> images_;
   std::vector<rosgraph_msgs::Log> logs_;
+};
+
+/// The fixture of the frontend_node rostests: one Harness (one node, one data clock) for every
+/// test, created and connected once; main() destroys it after the spinner stopped, since no callback
+/// may run while it goes.
+class HarnessTest : public testing::Test {
+ public:
+  inline static std::unique_ptr<Harness> harness;
+
+ protected:
+  static void SetUpTestSuite() {
+    if (harness) return;
+    harness = std::make_unique<Harness>();
+    connected_ = harness->waitForNode(20.0);
+  }
+  void SetUp() override { ASSERT_TRUE(connected_) << "frontend_node did not connect"; }
+  inline static bool connected_ = false;
 };
 
 /// Arcs of valid data: OK, the true yaw rate within 1 deg/s, the nominal speed.

@@ -6,12 +6,9 @@
 using namespace vwe_vo;
 using namespace vwe_vo::test;
 
-namespace {
-std::unique_ptr<Harness> harness;
-}  // namespace
+using FrontendNodeOptions = HarnessTest;
 
-TEST(FrontendNodeOptions, CalibrationParameterAndIntegerNominalSpeedAreUsed) {
-  ASSERT_TRUE(harness->waitForNode(20.0)) << "frontend_node did not connect";
+TEST_F(FrontendNodeOptions, CalibrationParameterAndIntegerNominalSpeedAreUsed) {
   // No camera_info is ever published: arcs at all mean ~calibration was used. Without /odom the
   // speed is ~nominal_speed (1, an integer parameter), not the config's 0.3.
   const auto [t0, t1] = harness->stream(0.9);
@@ -20,7 +17,7 @@ TEST(FrontendNodeOptions, CalibrationParameterAndIntegerNominalSpeedAreUsed) {
   for (const AckermannArc& a : arcs) EXPECT_DOUBLE_EQ(a.v, 1.0);
 }
 
-TEST(FrontendNodeOptions, SpeedComesFromOdometry) {
+TEST_F(FrontendNodeOptions, SpeedComesFromOdometry) {
   StreamOptions o;
   o.odom_speed = kV;
   const auto [t0, t1] = harness->stream(1.5, o);
@@ -29,7 +26,7 @@ TEST(FrontendNodeOptions, SpeedComesFromOdometry) {
   expectTrueArcs(arcs);  // v == 0.4 from /odom, not the nominal 1.0
 }
 
-TEST(FrontendNodeOptions, OdometryAtRestGivesStandstill) {
+TEST_F(FrontendNodeOptions, OdometryAtRestGivesStandstill) {
   StreamOptions o;
   o.odom_speed = 0.0;
   const auto [t0, t1] = harness->stream(1.2, o);
@@ -42,7 +39,7 @@ TEST(FrontendNodeOptions, OdometryAtRestGivesStandstill) {
   }
 }
 
-TEST(FrontendNodeOptions, FallingBehindSkipsWindowsAndRecovers) {
+TEST_F(FrontendNodeOptions, FallingBehindSkipsWindowsAndRecovers) {
   StreamOptions burst;
   burst.odom_speed = kV;
   burst.burst = true;
@@ -64,10 +61,9 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "frontend_node_options_test");
   ros::AsyncSpinner spinner(1);
   spinner.start();
-  harness = std::make_unique<Harness>();
   const int result = RUN_ALL_TESTS();
   spinner.stop();  // no callback may run while the harness (its subscribers, mutex) is destroyed
-  harness.reset();
+  HarnessTest::harness.reset();
   ros::shutdown();
   return result;
 }

@@ -1,8 +1,9 @@
 // mapping_node against synthetic events of random 3D points seen along a known Ackermann arc
 // (omega = 20 deg/s, v = 0.4 m/s) and a SplineTrajectory fitted to that arc (odom = base_link at
-// the reference time). The tests run in order on one node and one continuous data clock: events
-// wait for the trajectory, then map to clouds near the true points; a spline with a NaN is
-// refused; events the trajectory does not cover are skipped and counted; a looped stream resets.
+// the reference time), all on one node calibrated once, in any order; each test streams its events
+// after the newest ones so far: events wait for the trajectory, then map to clouds near the true
+// points; a spline with a NaN is refused; events the trajectory does not cover are skipped and
+// counted; a looped stream resets.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
@@ -105,10 +106,13 @@ class Harness {
       events_pub_.publish(msg);
       ros::WallDuration(0.002).sleep();
     }
+    if (!events.empty()) newest_ns_ = std::max(newest_ns_, events.back().t_ns);
     std::vector<Vec3> points_odom;
     for (const Vec3& p : points_cam) points_odom.push_back(T_base_cam_ * p);
     return points_odom;
   }
+  /// A reference time for span_s of new events: 1 s after the newest streamed so far.
+  int64_t nextRef(double span_s) const { return newest_ns_ + secToNs(1.0 + span_s / 2); }
 
   /// The true arc of base_link in odom (= base_link at t_ref), fitted by a cubic spline on
   /// [from, to] sampled at 100 Hz.
@@ -188,13 +192,12 @@ class Harness {
   ros::Subscriber points_sub_, cloud_sub_, depth_sub_, rosout_sub_;
   CameraModel camera_;
   Pose3 T_base_cam_;
+  int64_t newest_ns_ = secToNs(99.0);  // the data clock: newest event streamed
   std::mutex mutex_;  // guards the received messages below
   std::vector<sensor_msgs::PointCloud2> points_, clouds_;
   std::vector<sensor_msgs::Image> depths_;
   std::vector<rosgraph_msgs::Log> logs_;
 };
-
-std::unique_ptr<Harness> harness;
 
 /// Distance from p to the nearest of the points.
 double nearest(const Vec3& p, const std::vector<Vec3>& points) {
@@ -205,20 +208,38 @@ double nearest(const Vec3& p, const std::vector<Vec3>& points) {
 
 }  // namespace
 
-TEST(MappingNode, EventsWaitForTheTrajectoryThenMapNearTheTruePoints) {
-  ASSERT_TRUE(harness->waitForNode(20.0)) << "mapping_node did not connect";
-  harness->publishCameraInfo();
-  const int64_t t_ref = secToNs(101.0);
+/// One mapping_node for every test, connected and calibrated once; main() destroys the harness
+/// after the spinner stopped (no callback may run while it goes).
+class MappingNode : public testing::Test {
+ public:
+  inline static std::unique_ptr<Harness> harness;
+  inline static std::string config_path;  // set by main()
+
+ protected:
+  static void SetUpTestSuite() {
+    if (harness) return;
+    harness = std::make_unique<Harness>(loadPipelineConfig(config_path));
+    connected_ = harness->waitForNode(20.0);
+    if (connected_) harness->publishCameraInfo();
+  }
+  void SetUp() override { ASSERT_TRUE(connected_) << "mapping_node did not connect"; }
+  inline static bool connected_ = false;
+};
+
+TEST_F(MappingNode, EventsWaitForTheTrajectoryThenMapNearTheTruePoints) {
+  const size_t before = harness->numPoints();
+  const int64_t t_ref = harness->nextRef(2.0);
   const std::vector<Vec3> truth = harness->streamEvents(t_ref, 2.0, 120000, 7);
   ros::WallDuration(1.0).sleep();
-  EXPECT_EQ(harness->numPoints(), 0u) << "a cloud before any trajectory";
+  EXPECT_EQ(harness->numPoints(), before) << "a cloud before the trajectory";
 
   const BSpline spline = harness->trueSpline(t_ref, t_ref - secToNs(1.2), t_ref + secToNs(1.6));
   const SplineTrajectory msg = splineToMsg(spline, 0, "odom");
   harness->publishSpline(msg);
 
   // 0.8 m of travel: two keyframes of 0.3 m close on the way, the last one by the time-out.
-  const std::vector<sensor_msgs::PointCloud2> clouds = harness->waitForPoints(2, 40.0);
+  const std::vector<sensor_msgs::PointCloud2> all_clouds = harness->waitForPoints(before + 2, 40.0);
+  const std::vector<sensor_msgs::PointCloud2> clouds(all_clouds.begin() + long(before), all_clouds.end());
   ASSERT_GE(clouds.size(), 2u) << "no keyframe clouds on /vwe/map/points";
   size_t total = 0;
   std::vector<double> errors;
@@ -252,8 +273,8 @@ TEST(MappingNode, EventsWaitForTheTrajectoryThenMapNearTheTruePoints) {
   EXPECT_EQ(depths.back().data.size(), size_t(depths.back().step) * depths.back().height);
 }
 
-TEST(MappingNode, SplineWithNanIsRefused) {
-  const int64_t t_ref = secToNs(104.0);
+TEST_F(MappingNode, SplineWithNanIsRefused) {
+  const int64_t t_ref = harness->nextRef(2.0);
   SplineTrajectory msg =
       splineToMsg(harness->trueSpline(t_ref, t_ref - secToNs(1.0), t_ref + secToNs(1.0)), 0, "odom");
   msg.control_x[2] = std::numeric_limits<double>::quiet_NaN();
@@ -261,9 +282,9 @@ TEST(MappingNode, SplineWithNanIsRefused) {
   EXPECT_TRUE(harness->logged("control point 2 is not finite", rosgraph_msgs::Log::WARN));
 }
 
-TEST(MappingNode, EventsTheTrajectoryDoesNotCoverAreSkippedAndCounted) {
+TEST_F(MappingNode, EventsTheTrajectoryDoesNotCoverAreSkippedAndCounted) {
   const size_t before = harness->numPoints();
-  const int64_t t_ref = secToNs(104.0);
+  const int64_t t_ref = harness->nextRef(2.0);
   // The trajectory starts half-way through the events: the first half cannot be mapped.
   harness->publishSpline(
       splineToMsg(harness->trueSpline(t_ref, t_ref, t_ref + secToNs(1.6)), 0, "odom"));
@@ -273,9 +294,11 @@ TEST(MappingNode, EventsTheTrajectoryDoesNotCoverAreSkippedAndCounted) {
   EXPECT_GT(harness->waitForPoints(before + 1, 30.0).size(), before) << "the covered half maps";
 }
 
-TEST(MappingNode, LoopedStreamResetsAndMapsAgain) {
+TEST_F(MappingNode, LoopedStreamResetsAndMapsAgain) {
+  const int64_t t_newest = harness->nextRef(0.5);
+  harness->streamEvents(t_newest, 0.5, 20000, 10);  // data to loop back from, whatever ran before
   const size_t before = harness->numPoints();
-  const int64_t t_ref = secToNs(101.0);  // 4 s back: a looped bag
+  const int64_t t_ref = t_newest - secToNs(4.0);  // 4 s back: a looped bag
   harness->streamEvents(t_ref, 2.0, 120000, 9);
   EXPECT_TRUE(harness->logged("mapper, global map and trajectory reset", rosgraph_msgs::Log::WARN));
   harness->publishSpline(splineToMsg(
@@ -288,15 +311,13 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "mapping_node_test");
   ros::AsyncSpinner spinner(1);
   spinner.start();
-  std::string config_path;
-  if (!ros::param::get("/mapping_test_config", config_path)) {
+  if (!ros::param::get("/mapping_test_config", MappingNode::config_path)) {
     std::fprintf(stderr, "mapping_node_test: /mapping_test_config is not set\n");
     return 1;
   }
-  harness = std::make_unique<Harness>(loadPipelineConfig(config_path));
   const int result = RUN_ALL_TESTS();
   spinner.stop();  // no callback may run while the harness (its subscribers, mutex) is destroyed
-  harness.reset();
+  MappingNode::harness.reset();
   ros::shutdown();
   return result;
 }

@@ -89,6 +89,40 @@ TEST(Conversions, SplineRoundTripKeepsKnotsControlPointsAndStandstills) {
   EXPECT_THROW(splineFromMsg(bad), std::invalid_argument);
 }
 
+TEST(Conversions, OdometryGivesTheTwistOfBaseLink) {
+  nav_msgs::Odometry msg;
+  msg.header.stamp = toRosTime(12345678901);
+  msg.twist.twist.linear.x = 0.7;
+  msg.twist.twist.linear.y = 5.0;  // not the forward speed
+  msg.twist.twist.angular.z = -0.2;
+  msg.twist.twist.angular.x = 3.0;
+  const OdometrySample o = odometryFromMsg(msg);
+  EXPECT_EQ(o.t_ns, 12345678901);
+  EXPECT_EQ(o.v_mps, 0.7);
+  EXPECT_EQ(o.yaw_rate_rad_s, -0.2);
+}
+
+TEST(Conversions, GyroInTheCameraFrameGivesTheYawRateOfBaseLink) {
+  // A forward-looking optical frame (z forward, x right, y down) on base_link (x forward, y left,
+  // z up): base z = -camera y, so a left turn (+yaw) is a negative rate about the camera's y.
+  Mat3 R_base_cam;
+  R_base_cam << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  const Pose3 T_base_cam = makePose(Quat(R_base_cam), Vec3(0.1, 0.0, 0.3));
+  sensor_msgs::Imu msg;
+  msg.header.stamp = toRosTime(5000000007);
+  msg.angular_velocity.x = 0.05;
+  msg.angular_velocity.y = -0.4;
+  msg.angular_velocity.z = 0.02;
+  const GyroSample g = gyroFromMsg(msg, T_base_cam);
+  EXPECT_EQ(g.t_ns, 5000000007);
+  EXPECT_NEAR(g.yaw_rate_rad_s, 0.4, 1e-12);
+  // Pitched down by 10 deg about the camera's x: the yaw rate is the projection on base z.
+  const Pose3 T_pitched = makePose(Quat(R_base_cam * Eigen::AngleAxisd(0.17453292519943295, Vec3::UnitX())), Vec3::Zero());
+  msg.angular_velocity.x = 0.0;
+  msg.angular_velocity.z = 0.0;
+  EXPECT_NEAR(gyroFromMsg(msg, T_pitched).yaw_rate_rad_s, 0.4 * std::cos(0.17453292519943295), 1e-12);
+}
+
 TEST(Conversions, PoseRoundTrip) {
   const Pose3 T = makePose(Quat(Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized())), Vec3(1, -2, 3));
   const Pose3 B = poseFromMsg(poseToMsg(T));

@@ -7,6 +7,8 @@
 #include "vwe_vo/Event.h"
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/SplineTrajectory.h"
+#include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/ros/conversions.h"
 
 TEST(Messages, EventArrayMd5MatchesDvsMsgs) {
   EXPECT_STREQ(ros::message_traits::MD5Sum<vwe_vo::EventArray>::value(),
@@ -18,19 +20,41 @@ TEST(Messages, EventMd5MatchesDvsMsgs) {
                "40d339b261445b8ce9a6fef01267cd5d");
 }
 
-TEST(Messages, AckermannArcStatusConstants) {
-  EXPECT_EQ(vwe_vo::AckermannArc::OK, 0);
-  EXPECT_EQ(vwe_vo::AckermannArc::STANDSTILL, 1);
-  EXPECT_EQ(vwe_vo::AckermannArc::LOST, 2);
-  EXPECT_EQ(vwe_vo::AckermannArc::LOW_EVENTS, 3);
+// arcToMsg writes uint8_t(ArcStatus) and arcFromMsg reads it back: the message's constants must
+// be the core enum's values.
+TEST(Messages, AckermannArcStatusConstantsAreTheCoreEnum) {
+  EXPECT_EQ(vwe_vo::AckermannArc::OK, uint8_t(vwe_vo::ArcStatus::kOk));
+  EXPECT_EQ(vwe_vo::AckermannArc::STANDSTILL, uint8_t(vwe_vo::ArcStatus::kStandstill));
+  EXPECT_EQ(vwe_vo::AckermannArc::LOST, uint8_t(vwe_vo::ArcStatus::kLost));
+  EXPECT_EQ(vwe_vo::AckermannArc::LOW_EVENTS, uint8_t(vwe_vo::ArcStatus::kLowEvents));
+  for (vwe_vo::ArcStatus status : {vwe_vo::ArcStatus::kOk, vwe_vo::ArcStatus::kStandstill, vwe_vo::ArcStatus::kLost,
+                                   vwe_vo::ArcStatus::kLowEvents}) {
+    vwe_vo::ArcEstimate arc;
+    arc.status = status;
+    EXPECT_EQ(vwe_vo::arcFromMsg(vwe_vo::arcToMsg(arc, "base_link")).status, status) << toString(status);
+  }
 }
 
-TEST(Messages, SplineTrajectoryHasDesignFields) {
-  vwe_vo::SplineTrajectory s;
-  s.degree = 3;
-  s.knots = {0, 0, 0, 0, 1, 1, 1, 1};
-  s.control_x = {0, 1, 2, 3};
-  s.control_y = {0, 0, 0, 0};
-  s.first_free_control_point = 1;
-  EXPECT_EQ(s.knots.size(), s.control_x.size() + s.degree + 1);
+// The design's SplineTrajectory fields carry a spline through splineToMsg / splineFromMsg: degree,
+// knots (seconds since knot_epoch) and control points survive, and knots = points + degree + 1.
+TEST(Messages, SplineTrajectoryCarriesDegreeKnotsAndControlPoints) {
+  for (int degree : {1, 2, 3}) {
+    const int n = 6;
+    std::vector<double> knots;
+    for (int k = 0; k < n + degree + 1; ++k) knots.push_back(0.25 * (k - degree) + 0.01 * k * k);
+    std::vector<vwe_vo::Vec2> points;
+    for (int i = 0; i < n; ++i) points.emplace_back(0.3 * i - 1.0, 0.05 * i * i);
+    const vwe_vo::BSpline spline(degree, knots, points, 7000000000);
+    const vwe_vo::SplineTrajectory msg = vwe_vo::splineToMsg(spline, 2, "odom");
+    EXPECT_EQ(msg.degree, degree);
+    EXPECT_EQ(msg.knots.size(), msg.control_x.size() + msg.degree + 1);
+    EXPECT_EQ(msg.first_free_control_point, 2u);
+    EXPECT_EQ(vwe_vo::toNs(msg.knot_epoch), 7000000000);
+    const vwe_vo::BSpline back = vwe_vo::splineFromMsg(msg);
+    EXPECT_EQ(back.degree(), degree);
+    EXPECT_EQ(back.knots(), knots);
+    ASSERT_EQ(back.controlPoints().size(), points.size());
+    for (size_t i = 0; i < points.size(); ++i) EXPECT_EQ(back.controlPoints()[i], points[i]) << i;
+    EXPECT_EQ(back.epochNs(), spline.epochNs());
+  }
 }

@@ -12,7 +12,6 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <tf2_ros/transform_broadcaster.h>
 
-#include <atomic>
 #include <cstdint>
 #include <deque>
 #include <memory>
@@ -25,15 +24,17 @@
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/common/math.h"
-#include "vwe_vo/ros/calibrated_inbox.h"
+#include "vwe_vo/ros/node_input.h"
 
 namespace vwe_vo {
 
 /// Everything the node reads from the parameter server, once, at start-up.
 struct BackendNodeOptions {
-  std::string config_path;        // ~config: pipeline YAML (back-end options, T_base_cam)
+  std::string config_path;        // ~config: pipeline YAML (back-end options, T_base_cam); empty:
+                                  // vwe_vo.yaml in defaultConfigDir()
   std::string calibration_path;   // ~calibration: CameraInfo-style YAML; empty: /dvs/camera_info
-  int max_queue_packets = 4000;   // ~max_queue_packets: bound of the input queue [messages]
+  int max_queue_events = 5000000;  // ~max_queue_events: bound of the queued event packets [events]
+  int max_queue_messages = 4000;   // ~max_queue_messages: bound of the queued arcs [messages]
   double odom_rate_hz = 20.0;     // ~odom_rate_hz: rate of /vwe/odom and the tf (data time) [Hz]
   double max_gap_s = 2.0;         // ~max_gap_s: events or arcs this far apart reset [s]
   int path_max_poses = 2000;      // ~path_max_poses: newest poses kept in /vwe/path
@@ -64,7 +65,6 @@ class BackendNode {
   void eventsCallback(const EventArray::ConstPtr& msg);
   void cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg);
   void arcCallback(const AckermannArc::ConstPtr& msg);
-  bool enqueue(Input&& input);
 
   void workerLoop();
   void handleEvents(const EventVector& events);
@@ -86,13 +86,7 @@ class BackendNode {
   BackendOptions backend_options_;
   Pose3 T_base_cam_ = Pose3::Identity();
 
-  CalibratedInbox<Input> inbox_;  // callbacks -> worker, open once calibrated
-
-  SequenceGapCounter packet_sequence_;  // header.seq of /dvs/events (callback thread)
-  std::atomic<size_t> packets_lost_{0};  // packets ROS dropped before the callback
-  std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0},
-      inputs_queue_full_{0}, inputs_before_calibration_{0}, events_outside_msg_{0},
-      camera_info_refused_{0}, arcs_in_{0};
+  NodeInput<Input> input_{"backend_node"};  // callbacks -> worker, open once calibrated
 
   // Owned by the worker thread.
   std::unique_ptr<CameraModel> camera_;

@@ -9,6 +9,7 @@
 #include <ros/time.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
 #include <sensor_msgs/PointCloud2.h>
 
 #include <opencv2/core.hpp>
@@ -64,6 +65,22 @@ geometry_msgs::Quaternion quaternionToMsg(const Quat& q);
 cv::Mat imageFromMsg(const sensor_msgs::Image& msg);
 /// A BGR or mono cv::Mat as bgr8 / mono8.
 sensor_msgs::Image imageToMsg(const cv::Mat& image, int64_t t_ns, const std::string& frame_id);
+
+/// The forward speed and yaw rate of an Odometry's twist (in its child frame, base_link).
+struct OdometrySample {
+  int64_t t_ns = 0;
+  double v_mps = 0.0;
+  double yaw_rate_rad_s = 0.0;
+};
+OdometrySample odometryFromMsg(const nav_msgs::Odometry& msg);
+
+/// The yaw rate of base_link from a gyro in the camera frame (the DAVIS IMU):
+/// (R_base_cam * angular_velocity).z.
+struct GyroSample {
+  int64_t t_ns = 0;
+  double yaw_rate_rad_s = 0.0;
+};
+GyroSample gyroFromMsg(const sensor_msgs::Imu& msg, const Pose3& T_base_cam);
 
 AckermannArc arcToMsg(const ArcEstimate& arc, const std::string& frame_id);
 ArcEstimate arcFromMsg(const AckermannArc& msg);

@@ -9,12 +9,9 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 
-#include <atomic>
-#include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <thread>
 
@@ -23,16 +20,19 @@
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/baseline/frame_baseline.h"
 #include "vwe_vo/common/math.h"
+#include "vwe_vo/ros/node_input.h"
 
 namespace vwe_vo {
 
 /// Everything the node reads from the parameter server, once, at start-up.
 struct FrameBaselineNodeOptions {
-  std::string config_path;        // ~config: pipeline YAML (baseline options, T_base_cam)
+  std::string config_path;        // ~config: pipeline YAML (baseline options, T_base_cam); empty:
+                                  // vwe_vo.yaml in defaultConfigDir()
   std::string calibration_path;   // ~calibration: CameraInfo-style YAML; empty: /dvs/camera_info
   double nominal_speed_mps = -1;  // ~nominal_speed: overrides the config when >= 0 [m/s]
   bool use_odom = false;          // ~use_odom: speed (and standstill) from /odom
-  int max_queue_frames = 10;      // ~max_queue_frames: bound of the input queue (oldest dropped) [frames]
+  int max_queue_frames = 10;      // ~max_queue_frames: bound of the queued frames (oldest dropped) [frames]
+  int max_queue_messages = 2000;  // ~max_queue_messages: bound of the queued odometry [messages]
   void validate() const;          // throws std::invalid_argument naming the parameter
 };
 
@@ -58,7 +58,6 @@ class FrameBaselineNode {
   void imageCallback(const sensor_msgs::Image::ConstPtr& msg);
   void cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg);
   void odomCallback(const nav_msgs::Odometry::ConstPtr& msg);
-  void enqueue(Input&& input);
   void workerLoop();
   void handleFrame(const Input& input);
 
@@ -69,16 +68,7 @@ class FrameBaselineNode {
   FrameBaselineOptions baseline_options_;
   Pose3 T_base_cam_ = Pose3::Identity();
 
-  // mutex_ guards everything up to the next blank line (queue, calibration, stop flag).
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  std::deque<Input> queue_;
-  bool have_calibration_ = false;
-  CameraCalibration calibration_;
-  bool stop_ = false;
-
-  std::atomic<size_t> frames_in_{0}, frames_refused_{0}, frames_dropped_{0}, inputs_before_calibration_{0},
-      camera_info_refused_{0};
+  NodeInput<Input> input_{"frame_baseline_node"};  // callbacks -> worker, open once calibrated
 
   // Owned by the worker thread.
   std::unique_ptr<CameraModel> camera_;

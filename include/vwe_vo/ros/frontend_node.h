@@ -10,7 +10,6 @@
 #include <sensor_msgs/Imu.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 
-#include <atomic>
 #include <cstdint>
 #include <deque>
 #include <memory>
@@ -23,20 +22,23 @@
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/common/math.h"
-#include "vwe_vo/ros/calibrated_inbox.h"
+#include "vwe_vo/ros/node_input.h"
 #include "vwe_vo/vwe/vwe_image.h"
 
 namespace vwe_vo {
 
 /// Everything the node reads from the parameter server, once, at start-up.
 struct FrontendNodeOptions {
-  std::string config_path;        // ~config: pipeline YAML (front-end options, T_base_cam)
+  std::string config_path;        // ~config: pipeline YAML (front-end options, T_base_cam); empty:
+                                  // vwe_vo.yaml in defaultConfigDir()
   std::string calibration_path;   // ~calibration: CameraInfo-style YAML; empty: /dvs/camera_info
   double nominal_speed_mps = -1;  // ~nominal_speed: overrides the config when >= 0 [m/s]
   bool use_odom = false;          // ~use_odom: speed (and standstill) from /odom
   bool use_imu = false;           // ~use_imu: gyro yaw-rate prior from /dvs/imu
   bool publish_static_tf = true;  // ~publish_static_tf: static tf base_link -> davis (T_base_cam)
-  int max_queue_packets = 2000;   // ~max_queue_packets: bound of the input queue [messages]
+  int max_queue_events = 5000000;  // ~max_queue_events: bound of the queued event packets [events]
+  int max_queue_messages = 2000;   // ~max_queue_messages: bound of each other input (IMU, odometry,
+                                   // trajectories) [messages]
   double max_latency_s = 1.0;     // ~max_latency_s: backlog beyond this drops whole windows [s]
   double status_period_s = 10.0;  // ~status_period_s: period of the one-line status [s]
   bool follow_backend = true;     // ~follow_backend: re-anchor on /vwe/trajectory, use its speed
@@ -69,8 +71,6 @@ class FrontendNode {
   void odomCallback(const nav_msgs::Odometry::ConstPtr& msg);
   void imuCallback(const sensor_msgs::Imu::ConstPtr& msg);
   void trajectoryCallback(const SplineTrajectory::ConstPtr& msg);
-  /// False (and counted) if the queue is full or there is no calibration yet.
-  bool enqueue(Input&& input);
 
   void workerLoop();
   void handleEvents(const EventVector& events);
@@ -90,15 +90,7 @@ class FrontendNode {
   FrontendOptions frontend_options_;
   Pose3 T_base_cam_ = Pose3::Identity();
 
-  CalibratedInbox<Input> inbox_;  // callbacks -> worker, open once calibrated
-
-  // Counted by the callbacks (read by the status line).
-  SequenceGapCounter packet_sequence_;  // header.seq of /dvs/events (callback thread)
-  std::atomic<size_t> packets_lost_{0};  // packets ROS dropped before the callback
-  std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0},
-      packets_queue_full_{0};
-  std::atomic<size_t> inputs_before_calibration_{0}, events_outside_msg_{0},
-      camera_info_refused_{0}, trajectories_refused_{0};
+  NodeInput<Input> input_{"frontend_node"};  // callbacks -> worker, open once calibrated
 
   // Owned by the worker thread.
   std::unique_ptr<CameraModel> camera_;

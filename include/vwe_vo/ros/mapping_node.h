@@ -7,12 +7,9 @@
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 
-#include <atomic>
-#include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <memory>
-#include <mutex>
 #include <string>
 #include <thread>
 
@@ -22,19 +19,22 @@
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/mapping/emvs.h"
 #include "vwe_vo/common/math.h"
+#include "vwe_vo/ros/node_input.h"
 
 namespace vwe_vo {
 
 /// Everything the node reads from the parameter server, once, at start-up.
 struct MappingNodeOptions {
-  std::string config_path;           // ~config: pipeline YAML (its mapping: section, T_base_cam)
+  std::string config_path;           // ~config: pipeline YAML (its mapping: section, T_base_cam);
+                                     // empty: vwe_vo.yaml in defaultConfigDir()
   std::string calibration_path;      // ~calibration: CameraInfo-style YAML; empty: camera_info
   double cloud_period_s = 2.0;       // ~cloud_period_s: minimum period of /vwe/map/cloud [s]
   double trajectory_margin_s = 0.2;  // ~trajectory_margin_s: map events older than valid_to - this [s]
   double keyframe_timeout_s = 3.0;   // ~keyframe_timeout_s: close the open keyframe after this
                                      // long without events (end of a bag) [wall s]; 0: never
   double max_backwards_jump_s = 0.5;  // ~max_backwards_jump_s: events further back reset [s]
-  int max_queue_packets = 2000;       // ~max_queue_packets: bound of the input queue [messages]
+  int max_queue_events = 10000000;    // ~max_queue_events: bound of the queued event packets
+                                      // (room for bursts while keyframes close) [events]
   double status_period_s = 10.0;      // ~status_period_s: period of the one-line status [s]
   int nice = 0;                       // ~nice: CPU priority (0..19; higher yields to the others)
   void validate() const;              // throws std::invalid_argument naming the parameter
@@ -51,6 +51,12 @@ class MappingNode {
   MappingNode& operator=(const MappingNode&) = delete;
 
  private:
+  /// One queued input, converted to core types by a callback.
+  struct Input {
+    EventVector events;                     // event packets
+    std::shared_ptr<const BSpline> spline;  // a trajectory (then events is empty)
+  };
+
   void readParameters();
   void eventsCallback(const EventArray::ConstPtr& msg);
   void cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg);
@@ -72,21 +78,8 @@ class MappingNode {
   GlobalMapOptions global_map_options_;
   Pose3 T_base_cam_ = Pose3::Identity();
 
-  // mutex_ guards everything up to the next blank line (queue, spline, calibration, stop flag).
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  std::deque<EventVector> queue_;
-  std::shared_ptr<const BSpline> new_spline_;  // newest trajectory not yet taken by the worker
-  bool have_calibration_ = false;
-  CameraCalibration calibration_;
-  bool stop_ = false;
-
-  // Counted by the callbacks (read by the status line).
-  SequenceGapCounter packet_sequence_;  // header.seq of /dvs/events (callback thread)
-  std::atomic<size_t> packets_lost_{0};  // packets ROS dropped before the callback
-  std::atomic<size_t> packets_in_{0}, packets_empty_{0}, packets_wrong_size_{0},
-      packets_queue_full_{0}, packets_before_calibration_{0}, events_outside_msg_{0},
-      camera_info_refused_{0}, splines_in_{0}, splines_refused_{0};
+  // Callbacks -> worker, open once calibrated; the newest trajectory replaces one not yet taken.
+  NodeInput<Input> input_{"mapping_node"};
 
   // Owned by the worker thread.
   std::unique_ptr<CameraModel> camera_;

@@ -1,0 +1,200 @@
+// The input of every node: the hand-over between its ROS callbacks and its worker thread. It opens
+// once the camera calibration is known (~calibration, or the first valid camera_info), checks and
+// converts event packets (size against the calibration, events outside the sensor, header.seq gaps),
+// bounds the queue per input kind (event packets by their total events, every other kind by its own
+// message count, so that event packets never starve the IMU, odometry or trajectories), counts
+// everything refused or dropped per kind, and formats those counters for the node's status line.
+#pragma once
+
+#include <sensor_msgs/CameraInfo.h>
+
+#include <array>
+#include <chrono>
+#include <condition_variable>
+#include <cstddef>
+#include <deque>
+#include <mutex>
+#include <string>
+#include <utility>
+
+#include "vwe_vo/EventArray.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sensor/events.h"
+
+namespace vwe_vo {
+
+/// What a node receives. Each kind has its own bound and counters.
+enum class InputKind { kEvents, kImu, kOdometry, kTrajectory, kArc, kFrame };
+constexpr size_t kNumInputKinds = 6;
+/// "events", "imu", "odom", "trajectory", "arc", "frame" (the keys of the status line).
+const char* inputKindName(InputKind kind);
+
+/// What happens to an input that finds its kind's queue full.
+enum class Overflow {
+  kRefuseNewest,  // the arriving input is dropped (a stream the worker must see in order)
+  kDropOldest,    // the oldest queued input of the kind goes (a live stream: frames)
+  kReplaceOldest, // as kDropOldest, but expected (only the newest matters): counted, not warned about
+};
+
+/// The counters of one input kind.
+struct InputKindCounters {
+  size_t in = 0;                  // messages that reached the callback
+  size_t refused = 0;             // refused by a check or the conversion
+  size_t before_calibration = 0;  // arrived while there was no calibration yet
+  size_t dropped = 0;             // lost to a full queue (refused or pushed out)
+};
+
+/// Everything counted at the input (a snapshot).
+struct NodeInputCounters {
+  std::array<InputKindCounters, kNumInputKinds> kinds;
+  size_t packets_lost = 0;         // event packets ROS dropped before the callback (header.seq gaps)
+  size_t packets_empty = 0;        // event packets without events (counted in refused)
+  size_t packets_wrong_size = 0;   // width x height not the calibration's (counted in refused)
+  size_t events_outside = 0;       // events outside the packet's width x height, dropped
+  size_t camera_info_refused = 0;  // invalid camera_info, or one of another size than the first
+  const InputKindCounters& operator[](InputKind kind) const { return kinds[size_t(kind)]; }
+};
+
+/// The part of NodeInput that does not depend on the node's queued type.
+class NodeInputBase {
+ public:
+  enum class Push { kQueued, kNoCalibration, kFull, kQueuedDroppedOldest };
+
+  /// `node` names the node in every warning.
+  explicit NodeInputBase(std::string node);
+  NodeInputBase(const NodeInputBase&) = delete;
+  NodeInputBase& operator=(const NodeInputBase&) = delete;
+
+  /// The bound of a kind's queue: for kEvents the number of events in queued packets, for every
+  /// other kind the number of queued messages. Unbounded until set. Call before the callbacks run.
+  void setBound(InputKind kind, size_t bound, Overflow overflow = Overflow::kRefuseNewest);
+
+  /// A calibration known at start-up (~calibration): the input opens at once.
+  void setCalibration(const CameraCalibration& calibration);
+  /// The camera_info callback. The first valid message opens the input (logged, with the number of
+  /// inputs ignored before it); before that an invalid one is refused; afterwards one of another
+  /// size is refused and the first kept. Refusals are counted and warned about. True if it opened.
+  bool acceptCameraInfo(const sensor_msgs::CameraInfo& msg);
+  bool hasCalibration() const;
+
+  /// The first half of the event-packet callback: counts the packet and any header.seq gap before
+  /// it, refuses it without a calibration, when empty or when its width x height is not the
+  /// calibration's, and converts it (events outside the sensor dropped). All counted and warned
+  /// about (throttled). False when nothing is left to queue.
+  bool acceptEventPacket(const EventArray& msg, EventVector* events);
+
+  /// A message of `kind` the node's own check or conversion refused: counted as refused, and as
+  /// in unless it had been queued (`queued`: refused by the worker after push()).
+  void countRefused(InputKind kind, bool queued = false);
+  /// A message of `kind` that arrived before the calibration and is not queued (counted).
+  void countBeforeCalibration(InputKind kind);
+
+  NodeInputCounters counters() const;
+  /// The counters as one line of `key=value` fields, e.g. "events in=120 lost=0 empty=3
+  /// wrong_size=0 outside=15 before_calibration=0 dropped=0; odom in=60 refused=0 ...; camera_info
+  /// refused=0". Kinds the node never bounded nor received are left out.
+  std::string statusLine() const;
+
+  /// Worker: blocks until the calibration is known; false if stopped first.
+  bool waitForCalibration(CameraCalibration* calibration);
+  /// Wakes the worker for good (its waits return false).
+  void stop();
+
+ protected:
+  /// Counts an arrival (event packets are counted by acceptEventPacket) and decides whether it may
+  /// be queued; the caller holds mutex_. `size` is the item's weight against its kind's bound
+  /// (events for kEvents, 1 otherwise); an item alone in its kind's queue always fits. Returns
+  /// kFull when the item must be refused, kQueuedDroppedOldest when the caller must first drop
+  /// the oldest queued items of the kind until queued_[kind] + size fits.
+  Push admitLocked(InputKind kind, size_t size);
+  void warnDropped(InputKind kind);
+
+  const std::string node_;
+  mutable std::mutex mutex_;  // guards everything below and the derived class's queue
+  std::condition_variable cv_;
+  bool stop_ = false;
+  bool have_calibration_ = false;
+  CameraCalibration calibration_;
+  std::array<size_t, kNumInputKinds> bound_;
+  std::array<Overflow, kNumInputKinds> overflow_;
+  std::array<bool, kNumInputKinds> used_;
+  std::array<size_t, kNumInputKinds> queued_;  // weight queued per kind
+  NodeInputCounters counters_;
+  SequenceGapCounter packet_sequence_;  // header.seq of the event packets
+};
+
+/// The node's queue of T (its own tagged input struct), on top of NodeInputBase.
+template <typename T>
+class NodeInput : public NodeInputBase {
+ public:
+  using NodeInputBase::NodeInputBase;
+
+  /// Queues `item` of `kind` (weight `size` against the kind's bound: its events for kEvents)
+  /// unless there is no calibration yet or the kind's queue is full (then by its Overflow).
+  Push push(InputKind kind, T&& item, size_t size = 1) {
+    bool warn = false;
+    Push result;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      result = admitLocked(kind, size);
+      if (result == Push::kFull) {
+        warn = true;
+      } else if (result != Push::kNoCalibration) {
+        if (result == Push::kQueuedDroppedOldest) {
+          warn = overflow_[size_t(kind)] == Overflow::kDropOldest;
+          for (auto it = queue_.begin(); it != queue_.end() && queued_[size_t(kind)] + size > bound_[size_t(kind)];) {
+            if (it->kind == kind) {
+              queued_[size_t(kind)] -= it->size;
+              ++counters_.kinds[size_t(kind)].dropped;
+              it = queue_.erase(it);
+            } else {
+              ++it;
+            }
+          }
+        }
+        queue_.push_back(Slot{kind, size, std::move(item)});
+        queued_[size_t(kind)] += size;
+        cv_.notify_one();
+      }
+    }
+    if (warn) warnDropped(kind);
+    return result;
+  }
+
+  /// The whole event-packet callback: acceptEventPacket, then queues make(events) (a T) as
+  /// kEvents weighted by its events. True if queued.
+  template <typename Make>
+  bool pushEventPacket(const EventArray& msg, Make&& make) {
+    EventVector events;
+    if (!acceptEventPacket(msg, &events)) return false;
+    const size_t n = events.size();
+    const Push result = push(InputKind::kEvents, make(std::move(events)), n);
+    return result == Push::kQueued || result == Push::kQueuedDroppedOldest;
+  }
+
+  /// Worker: everything queued, in arrival order (waiting up to `timeout` for something); false
+  /// once stopped.
+  bool takeAll(std::deque<T>* batch, std::chrono::milliseconds timeout) {
+    std::deque<Slot> slots;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait_for(lock, timeout, [this] { return stop_ || !queue_.empty(); });
+      if (stop_) return false;
+      slots.swap(queue_);
+      queued_.fill(0);
+    }
+    batch->clear();
+    for (Slot& s : slots) batch->push_back(std::move(s.item));
+    return true;
+  }
+
+ private:
+  struct Slot {
+    InputKind kind;
+    size_t size;
+    T item;
+  };
+  std::deque<Slot> queue_;  // guarded by mutex_
+};
+
+}  // namespace vwe_vo

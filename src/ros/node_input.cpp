@@ -1,0 +1,227 @@
+#include "vwe_vo/ros/node_input.h"
+
+#include <ros/console.h>
+
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include "vwe_vo/ros/conversions.h"
+
+namespace vwe_vo {
+
+const char* inputKindName(InputKind kind) {
+  switch (kind) {
+    case InputKind::kEvents:
+      return "events";
+    case InputKind::kImu:
+      return "imu";
+    case InputKind::kOdometry:
+      return "odom";
+    case InputKind::kTrajectory:
+      return "trajectory";
+    case InputKind::kArc:
+      return "arc";
+    case InputKind::kFrame:
+      return "frame";
+  }
+  return "?";
+}
+
+NodeInputBase::NodeInputBase(std::string node) : node_(std::move(node)) {
+  bound_.fill(std::numeric_limits<size_t>::max());
+  overflow_.fill(Overflow::kRefuseNewest);
+  used_.fill(false);
+  queued_.fill(0);
+}
+
+void NodeInputBase::setBound(InputKind kind, size_t bound, Overflow overflow) {
+  if (bound < 1) throw std::invalid_argument(node_ + ": the input bound of " + inputKindName(kind) + " must be >= 1");
+  std::lock_guard<std::mutex> lock(mutex_);
+  bound_[size_t(kind)] = bound;
+  overflow_[size_t(kind)] = overflow;
+  used_[size_t(kind)] = true;
+}
+
+void NodeInputBase::setCalibration(const CameraCalibration& calibration) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  calibration_ = calibration;
+  have_calibration_ = true;
+  cv_.notify_all();
+}
+
+bool NodeInputBase::acceptCameraInfo(const sensor_msgs::CameraInfo& msg) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (have_calibration_) {
+    if (int(msg.width) != calibration_.width || int(msg.height) != calibration_.height) {
+      ++counters_.camera_info_refused;
+      ROS_ERROR_THROTTLE(10,
+                         "%s: camera_info is %ux%u but the calibration in use is %dx%d: refused, keeping the "
+                         "first (%zu refused so far)",
+                         node_.c_str(), msg.width, msg.height, calibration_.width, calibration_.height,
+                         counters_.camera_info_refused);
+    }
+    return false;
+  }
+  try {
+    calibration_ = calibrationFromMsg(msg);
+  } catch (const std::invalid_argument& e) {
+    ++counters_.camera_info_refused;
+    ROS_WARN_THROTTLE(5, "%s: camera_info refused: %s; still waiting for a valid one (%zu refused so far)",
+                      node_.c_str(), e.what(), counters_.camera_info_refused);
+    return false;
+  }
+  have_calibration_ = true;
+  ROS_INFO("%s: calibration from camera_info: %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f", node_.c_str(),
+           calibration_.width, calibration_.height, calibration_.fx, calibration_.fy, calibration_.cx,
+           calibration_.cy);
+  size_t before = 0;
+  for (const InputKindCounters& k : counters_.kinds) before += k.before_calibration;
+  if (before > 0) ROS_INFO("%s: %zu inputs before the calibration were ignored", node_.c_str(), before);
+  cv_.notify_all();
+  return true;
+}
+
+bool NodeInputBase::hasCalibration() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return have_calibration_;
+}
+
+bool NodeInputBase::acceptEventPacket(const EventArray& msg, EventVector* events) {
+  events->clear();
+  int width = 0, height = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    InputKindCounters& c = counters_.kinds[size_t(InputKind::kEvents)];
+    used_[size_t(InputKind::kEvents)] = true;
+    ++c.in;
+    const uint64_t gap = packet_sequence_.observe(msg.header.seq);
+    if (gap > 0) {
+      counters_.packets_lost += gap;
+      ROS_WARN_THROTTLE(10,
+                        "%s: %lu event packets never reached the node (gap in header.seq before %u: the "
+                        "subscriber queue overflowed, the node is too slow for the data); %zu lost so far",
+                        node_.c_str(), static_cast<unsigned long>(gap), msg.header.seq, counters_.packets_lost);
+    }
+    if (!have_calibration_) {
+      ++c.before_calibration;
+      return false;
+    }
+    if (msg.events.empty()) {
+      ++c.refused;
+      ++counters_.packets_empty;
+      ROS_WARN_THROTTLE(10, "%s: empty EventArray ignored (%zu so far)", node_.c_str(), counters_.packets_empty);
+      return false;
+    }
+    width = calibration_.width;
+    height = calibration_.height;
+    if (int(msg.width) != width || int(msg.height) != height) {
+      ++c.refused;
+      ++counters_.packets_wrong_size;
+      ROS_ERROR_THROTTLE(5, "%s: EventArray is %ux%u but the calibration is %dx%d: packet refused (%zu so far)",
+                         node_.c_str(), msg.width, msg.height, width, height, counters_.packets_wrong_size);
+      return false;
+    }
+  }
+  // The conversion runs outside the lock: the worker may take its batch meanwhile.
+  EventConversionStats stats;
+  eventsFromMsg(msg, events, &stats);
+  if (stats.dropped > 0) {
+    size_t outside = 0;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      counters_.events_outside += stats.dropped;
+      outside = counters_.events_outside;
+    }
+    ROS_WARN_THROTTLE(10, "%s: %zu events outside the %dx%d sensor dropped (%zu so far)", node_.c_str(),
+                      stats.dropped, width, height, outside);
+  }
+  return !events->empty();
+}
+
+void NodeInputBase::countRefused(InputKind kind, bool queued) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  used_[size_t(kind)] = true;
+  if (!queued) ++counters_.kinds[size_t(kind)].in;
+  ++counters_.kinds[size_t(kind)].refused;
+}
+
+void NodeInputBase::countBeforeCalibration(InputKind kind) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  used_[size_t(kind)] = true;
+  ++counters_.kinds[size_t(kind)].in;
+  ++counters_.kinds[size_t(kind)].before_calibration;
+}
+
+NodeInputCounters NodeInputBase::counters() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return counters_;
+}
+
+std::string NodeInputBase::statusLine() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::ostringstream s;
+  for (size_t k = 0; k < kNumInputKinds; ++k) {
+    if (!used_[k]) continue;
+    const InputKindCounters& c = counters_.kinds[k];
+    s << inputKindName(InputKind(k)) << " in=" << c.in;
+    if (InputKind(k) == InputKind::kEvents)
+      s << " lost=" << counters_.packets_lost << " empty=" << counters_.packets_empty
+        << " wrong_size=" << counters_.packets_wrong_size << " outside=" << counters_.events_outside;
+    s << " refused=" << c.refused << " before_calibration=" << c.before_calibration << " dropped=" << c.dropped
+      << "; ";
+  }
+  s << "camera_info refused=" << counters_.camera_info_refused;
+  return s.str();
+}
+
+bool NodeInputBase::waitForCalibration(CameraCalibration* calibration) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  cv_.wait(lock, [this] { return stop_ || have_calibration_; });
+  if (stop_) return false;
+  *calibration = calibration_;
+  return true;
+}
+
+void NodeInputBase::stop() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+}
+
+NodeInputBase::Push NodeInputBase::admitLocked(InputKind kind, size_t size) {
+  const size_t k = size_t(kind);
+  used_[k] = true;
+  InputKindCounters& c = counters_.kinds[k];
+  if (kind != InputKind::kEvents) ++c.in;
+  if (!have_calibration_) {
+    ++c.before_calibration;
+    return Push::kNoCalibration;
+  }
+  if (queued_[k] == 0 || queued_[k] + size <= bound_[k]) return Push::kQueued;
+  if (overflow_[k] != Overflow::kRefuseNewest) return Push::kQueuedDroppedOldest;
+  ++c.dropped;
+  return Push::kFull;
+}
+
+void NodeInputBase::warnDropped(InputKind kind) {
+  size_t dropped = 0, bound = 0;
+  Overflow overflow;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    dropped = counters_.kinds[size_t(kind)].dropped;
+    bound = bound_[size_t(kind)];
+    overflow = overflow_[size_t(kind)];
+  }
+  const char* unit = kind == InputKind::kEvents ? "events" : "messages";
+  if (overflow != Overflow::kRefuseNewest)
+    ROS_WARN_THROTTLE(5, "%s: %s queue full (%zu %s), the worker cannot keep up: oldest dropped (%zu so far)",
+                      node_.c_str(), inputKindName(kind), bound, unit, dropped);
+  else
+    ROS_WARN_THROTTLE(5, "%s: %s queue full (%zu %s), the worker cannot keep up: newest dropped (%zu so far)",
+                      node_.c_str(), inputKindName(kind), bound, unit, dropped);
+}
+
+}  // namespace vwe_vo
