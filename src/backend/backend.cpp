@@ -112,8 +112,7 @@ SpeedPrior::SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free,
                        const std::vector<double>& u, double weight, double min_speed_mps)
     : spline_(std::move(spline)), first_free_(first_free), weight_(weight) {
   for (double uk : u) {
-    bool still = false;
-    for (const auto& s : spline_->standstills()) still = still || (uk >= s.from_s && uk <= s.to_s);
+    const bool still = spline_->standstillAt(uk) != nullptr;
     const double v = spline_->velocity(uk).norm();
     if (still || !(v >= min_speed_mps)) continue;
     // Only samples the free control points move.
@@ -165,7 +164,6 @@ double ArcRatePrior::evaluate(Eigen::VectorXd* gradient) const {
   if (gradient) gradient->setZero(num_free);
   if (arcs_.empty() || weight_ == 0.0) return 0.0;
   const double w = weight_ / double(arcs_.size());
-  constexpr double kDegPerRad = 180.0 / kPi;
   double f = 0.0;
   PlanarPoseJacobian ja, jb;
   Vec2 c;
@@ -290,9 +288,8 @@ Backend::Backend(const BackendOptions& options, const CameraModel& camera, const
 void Backend::reset() {
   buffer_.clear();
   standstills_ns_.clear();
-  chain_.reset();
-  steps_.reset();
-  has_last_rates_ = has_good_rates_ = false;
+  dead_reckoning_.reset();
+  has_good_rates_ = false;
   arcs_.clear();
   newest_arc_ns_ = processed_ns_ = -1;
   first_free_ = 0;
@@ -322,14 +319,12 @@ void Backend::addEvents(const EventVector& events) {
 bool Backend::addArc(const ArcEstimate& arc) {
   ++stats_.arcs_in;
   bool was_reset = false;
-  if (chain_ && arc.t_end_ns < newest_arc_ns_ - secToNs(options_.max_backwards_jump_s)) {
+  if (dead_reckoning_ && arc.t_end_ns < newest_arc_ns_ - secToNs(options_.max_backwards_jump_s)) {
     reset();
     was_reset = true;
   }
-  if (!chain_) {
-    chain_ = std::make_unique<ArcChain>(Pose3::Identity(), arc.t_start_ns);
-    steps_ = std::make_unique<ArcChain>(Pose3::Identity(), arc.t_start_ns);
-  }
+  if (!dead_reckoning_)
+    dead_reckoning_ = std::make_unique<ArcDeadReckoning>(arc.t_start_ns, options_.interpolate_arc_rates);
   if (newest_arc_ns_ >= 0 && arc.t_end_ns <= newest_arc_ns_) return was_reset;
   const bool still = arc.status == ArcStatus::kStandstill;
   const bool measured = arc.status == ArcStatus::kOk && std::isfinite(arc.omega) && std::isfinite(arc.v);
@@ -343,35 +338,7 @@ bool Backend::addArc(const ArcEstimate& arc) {
   const double omega = still ? 0.0 : measured ? arc.omega : has_good_rates_ ? good_omega_ : 0.0;
   const double v = still ? 0.0 : measured ? arc.v : has_good_rates_ ? good_v_ : 0.0;
   const int64_t from = newest_arc_ns_ >= 0 ? newest_arc_ns_ : arc.t_start_ns;
-  steps_->append(omega, v, arc.t_end_ns);
-  if (!options_.interpolate_arc_rates) {
-    chain_->append(omega, v, arc.t_end_ns);
-  } else if (still) {
-    // The moving arc before keeps its rates to its end; the standstill holds the pose.
-    if (has_last_rates_ && from > chain_->endTime()) chain_->append(last_omega_, last_v_, from);
-    chain_->append(0.0, 0.0, arc.t_end_ns);
-    has_last_rates_ = false;
-  } else {
-    // Each arc is the mean rate over its window, i.e. the rate at its middle: between two
-    // middles the rates ramp linearly (in short constant pieces), as integrateArcs() does.
-    const int64_t t_ref = std::clamp(arc.t_ref_ns, std::max(from, chain_->endTime()), arc.t_end_ns);
-    if (!has_last_rates_) {
-      if (from > chain_->endTime()) chain_->append(0.0, 0.0, from);  // after a standstill
-      chain_->append(omega, v, t_ref);
-    } else {
-      constexpr int kPieces = 8;
-      const int64_t t0 = chain_->endTime();
-      for (int k = 0; k < kPieces; ++k) {
-        const double s = (k + 0.5) / kPieces;
-        chain_->append((1 - s) * last_omega_ + s * omega, (1 - s) * last_v_ + s * v,
-                       t0 + (t_ref - t0) * (k + 1) / kPieces);
-      }
-      chain_->append(omega, v, t_ref);  // empty: beyond its end the chain goes on at the arc's rates
-    }
-    last_omega_ = omega;
-    last_v_ = v;
-    has_last_rates_ = true;
-  }
+  dead_reckoning_->append({omega, v}, still, from, arc.t_ref_ns, arc.t_end_ns);
   if (measured) {
     arcs_.push_back(arc);
     // Bounded: the next refinement's window starts at most window_s before its newest arc.
@@ -389,16 +356,16 @@ bool Backend::addArc(const ArcEstimate& arc) {
 }
 
 bool Backend::process() {
-  if (!chain_) return false;
-  const int64_t from = processed_ns_ < 0 ? chain_->startTime() : processed_ns_;
+  if (!dead_reckoning_) return false;
+  const int64_t from = processed_ns_ < 0 ? dead_reckoning_->startTime() : processed_ns_;
   if (dtSec(newest_arc_ns_, from) < options_.update_interval_s) return false;
   update(newest_arc_ns_);
   return true;
 }
 
 void Backend::finish() {
-  if (!chain_ || newest_arc_ns_ <= processed_ns_) return;
-  if (dtSec(newest_arc_ns_, chain_->startTime()) < 2 * options_.init_sample_interval_s) return;
+  if (!dead_reckoning_ || newest_arc_ns_ <= processed_ns_) return;
+  if (dtSec(newest_arc_ns_, dead_reckoning_->startTime()) < 2 * options_.init_sample_interval_s) return;
   update(newest_arc_ns_);
 }
 
@@ -406,52 +373,13 @@ void Backend::update(int64_t t_new_ns) {
   extendSpline(t_new_ns);
   refine(t_new_ns);
   processed_ns_ = t_new_ns;
-  T_anchor_ = spline_->T_odom_base(spline_->toSplineTime(t_new_ns)) *
-              steps_->T_odom_base(t_new_ns).inverse();
+  T_anchor_ = anchorOnSplinePose(*spline_, spline_->toSplineTime(t_new_ns),
+                                 dead_reckoning_->steps().T_odom_base(t_new_ns));
   ++stats_.updates;
   // Bounded memory: events before the next window cannot be used again.
   const int64_t keep_from = t_new_ns - secToNs(options_.window_s + options_.tau2_s);
   if (!buffer_.empty() && buffer_.oldestTime() < keep_from) buffer_.dropBefore(keep_from);
 }
-
-namespace {
-// The planar rigid motion that best maps the dead reckoning onto the refined spline over
-// [t_end - span, t_end] (least squares of the positions; their spread determines the heading far
-// better than the spline's tangent at the end of its refined part). Falls back to matching the
-// poses at t_end when the vehicle barely moved over the span.
-Pose3 anchorOnSpline(const BSpline& spline, const ArcChain& chain, int64_t t_end_ns, double span_s) {
-  const Pose3 T_end = spline.T_odom_base(spline.toSplineTime(t_end_ns)) *
-                      chain.T_odom_base(t_end_ns).inverse();
-  const int64_t t_from =
-      std::max({t_end_ns - secToNs(span_s), chain.startTime(),
-                spline.epochNs() + secToNs(spline.validFrom())});
-  constexpr int kSamples = 21;
-  if (t_end_ns - t_from < secToNs(0.05)) return T_end;
-  std::vector<Vec2> q(kSamples), p(kSamples);
-  Vec2 qc = Vec2::Zero(), pc = Vec2::Zero();
-  for (int k = 0; k < kSamples; ++k) {
-    const int64_t t = t_from + (t_end_ns - t_from) * k / (kSamples - 1);
-    q[k] = chain.T_odom_base(t).translation().head<2>();
-    p[k] = spline.position(spline.toSplineTime(t));
-    qc += q[k] / kSamples;
-    pc += p[k] / kSamples;
-  }
-  double sxx = 0, sxy = 0, spread = 0;  // H = sum (q - qc)(p - pc)^T
-  for (int k = 0; k < kSamples; ++k) {
-    const Vec2 a = q[k] - qc, b = p[k] - pc;
-    sxx += a.dot(b);
-    sxy += a.x() * b.y() - a.y() * b.x();
-    spread += a.squaredNorm();
-  }
-  if (spread / kSamples < 0.02 * 0.02) return T_end;  // moved less than ~2 cm: heading unknown
-  const double theta = std::atan2(sxy, sxx);
-  const Eigen::Rotation2Dd R(theta);
-  // Position: through the pose at t_end (continuity there), rotation from the fit.
-  const Vec2 q_end = chain.T_odom_base(t_end_ns).translation().head<2>();
-  const Vec2 t = spline.position(spline.toSplineTime(t_end_ns)) - R * q_end;
-  return makePose(rotZ(theta), Vec3(t.x(), t.y(), 0.0));
-}
-}  // namespace
 
 std::vector<BSpline::Interval> Backend::standstillIntervals(int64_t epoch_ns) const {
   std::vector<BSpline::Interval> out;
@@ -463,7 +391,8 @@ std::vector<BSpline::Interval> Backend::standstillIntervals(int64_t epoch_ns) co
 void Backend::extendSpline(int64_t t_new_ns) {
   const int p = options_.degree;
   const double dk = options_.knot_spacing_s;
-  const int64_t epoch = spline_ ? spline_->epochNs() : chain_->startTime();
+  const ArcChain& chain = dead_reckoning_->ramped();
+  const int64_t epoch = spline_ ? spline_->epochNs() : chain.startTime();
   const double u_new = dtSec(t_new_ns, epoch);
   // Uniform knots (k - p) dk, unclamped: extending appends knots and control points and leaves
   // the existing curve on the old domain untouched.
@@ -483,7 +412,7 @@ void Backend::extendSpline(int64_t t_new_ns) {
     // Refit every control point whose support reaches past u_old (the unrefined part).
     while (first < n_old && knots[first + p + 1] <= u_old) ++first;
     first = std::min(first, n - 1);
-    T_anchor = anchorOnSpline(*spline_, *chain_, processed_ns_, options_.window_s / 2);
+    T_anchor = fitAnchorOnSpline(*spline_, chain, processed_ns_, options_.window_s / 2);
   }
   auto next = std::make_shared<BSpline>(p, knots, P, epoch);
   next->setStandstills(standstillIntervals(epoch));
@@ -501,7 +430,7 @@ void Backend::extendSpline(int64_t t_new_ns) {
     if (spline_ && uk <= u_old)
       pos.push_back(spline_->position(uk));
     else
-      pos.push_back((T_anchor * chain_->T_odom_base(epoch + secToNs(uk))).translation().head<2>());
+      pos.push_back((T_anchor * chain.T_odom_base(epoch + secToNs(uk))).translation().head<2>());
   }
   fitControlPoints(next.get(), first, u, pos, options_.smoothness_weight);
   spline_ = next;
@@ -520,16 +449,10 @@ void Backend::refine(int64_t t_new_ns) {
   first_free_ = first_free;
   if (first_free >= spline_->numControlPoints() || options_.max_iterations == 0) return;
 
-  const std::vector<BSpline::Interval>& still = spline_->standstills();
-  auto inStandstill = [&](double u) {
-    for (const auto& s : still)
-      if (u >= s.from_s && u <= s.to_s) return true;
-    return false;
-  };
   std::vector<BackendVolume> volumes;
   const double half = 0.5 * options_.tau2_s;
   for (double ur = u_new - half; ur - half >= u_window - 1e-9; ur -= options_.tau1_s) {
-    if (inStandstill(ur)) {
+    if (spline_->standstillAt(ur)) {
       ++stats_.volumes_skipped;
       continue;
     }
@@ -604,18 +527,18 @@ void Backend::refine(int64_t t_new_ns) {
   }
 }
 
-int64_t Backend::oldestArcTime() const { return chain_ ? chain_->startTime() : -1; }
+int64_t Backend::oldestArcTime() const { return dead_reckoning_ ? dead_reckoning_->startTime() : -1; }
 
 bool Backend::poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const {
-  if (!chain_ || t_ns < chain_->startTime() || t_ns > newest_arc_ns_) return false;
+  if (!dead_reckoning_ || t_ns < dead_reckoning_->startTime() || t_ns > newest_arc_ns_) return false;
   constexpr int64_t kRateStep_ns = 20000000;  // central differences for the rates [ns]
   auto pose = [&](int64_t t) {
     if (spline_ && t <= processed_ns_) return spline_->T_odom_base(spline_->toSplineTime(t));
-    return Pose3(T_anchor_ * steps_->T_odom_base(t));
+    return Pose3(T_anchor_ * dead_reckoning_->steps().T_odom_base(t));
   };
   *T_odom_base = pose(t_ns);
   if (v || omega) {
-    const int64_t a = std::max(chain_->startTime(), t_ns - kRateStep_ns);
+    const int64_t a = std::max(dead_reckoning_->startTime(), t_ns - kRateStep_ns);
     const int64_t b = std::min(newest_arc_ns_, t_ns + kRateStep_ns);
     const double dt = dtSec(b, a);
     const Pose3 Ta = pose(a), Tb = pose(b);

@@ -500,34 +500,10 @@ void Frontend::moveToNextWindow(int64_t t0, int64_t t1) {
 }
 
 Trajectory3 integrateArcs(const std::vector<ArcEstimate>& arcs, int64_t step_ns) {
-  Trajectory3 out;
-  if (arcs.empty() || step_ns <= 0) return out;
-  // Rates at time t: linear between consecutive reference times, constant beyond the ends.
-  size_t k = 0;
-  auto rates = [&](int64_t t, double* omega, double* v) {
-    while (k + 1 < arcs.size() && arcs[k + 1].t_ref_ns <= t) ++k;
-    const ArcEstimate& a = arcs[k];
-    if (t <= a.t_ref_ns || k + 1 >= arcs.size()) {
-      *omega = a.omega, *v = a.v;
-      return;
-    }
-    const ArcEstimate& b = arcs[k + 1];
-    const double s = double(t - a.t_ref_ns) / double(b.t_ref_ns - a.t_ref_ns);
-    *omega = (1 - s) * a.omega + s * b.omega;
-    *v = (1 - s) * a.v + s * b.v;
-  };
-  const int64_t t0 = arcs.front().t_start_ns, t1 = arcs.back().t_end_ns;
-  Pose3 T = Pose3::Identity();
-  out.push_back({t0, T});
-  for (int64_t t = t0; t < t1;) {
-    const int64_t tn = std::min(t1, t + step_ns);
-    double omega, v;
-    rates(t + (tn - t) / 2, &omega, &v);  // midpoint rule: second order in the step
-    T = arcPropagate(T, t, omega, v, tn);
-    out.push_back({tn, T});
-    t = tn;
-  }
-  return out;
+  std::vector<TimedRates> rates;
+  rates.reserve(arcs.size());
+  for (const ArcEstimate& a : arcs) rates.push_back({a.t_start_ns, a.t_ref_ns, a.t_end_ns, {a.omega, a.v}});
+  return integrateRamps(rates, step_ns);
 }
 
 void Frontend::setNominalSpeed(double v_mps) {

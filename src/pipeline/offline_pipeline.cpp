@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -32,6 +33,18 @@ OfflinePipeline::OfflinePipeline(const PipelineConfig& config)
       frontend_(config.frontend, camera_, config.T_base_cam) {
   if (config.frontend_only) return;
   backend_ = std::make_unique<Backend>(config.backend, camera_, config.T_base_cam);
+  BackendDriverOptions driver_options;
+  driver_options.odom_rate_hz = config.backend.output_rate_hz;
+  BackendDriver::Callbacks callbacks;
+  callbacks.odometry = [this](int64_t t_ns, const Pose3& T, double, double) {
+    odometry_trajectory_.push_back({t_ns, T});
+  };
+  callbacks.refinement = [this](size_t) {
+    auto spline = std::make_shared<const BSpline>(backend_->spline());
+    std::lock_guard<std::mutex> lock(backend_mutex_);
+    refined_ = std::move(spline);
+  };
+  driver_ = std::make_unique<BackendDriver>(backend_.get(), driver_options, callbacks);
   if (config.backend_thread) backend_thread_ = std::thread(&OfflinePipeline::backendLoop, this);
 }
 
@@ -49,8 +62,9 @@ OfflinePipeline::~OfflinePipeline() {
 
 void OfflinePipeline::runBackend(const BackendJob& job) {
   const auto t0 = Clock::now();
-  backend_->addEvents(job.events);
-  const int64_t step = std::max<int64_t>(1, secToNs(1.0 / config_.backend.output_rate_hz));
+  driver_->addEvents(job.events);
+  // The job's arcs are one batch (BackendDriver's processing rule).
+  const int64_t newest_pending = job.arcs.empty() ? -1 : job.arcs.back().t_end_ns;
   for (ArcEstimate arc : job.arcs) {
     if (!arc_truth_.empty()) {
       double truth = 0.0;
@@ -61,14 +75,9 @@ void OfflinePipeline::runBackend(const BackendJob& job) {
         ++arcs_outside_truth_;
       }
     }
-    if (backend_->addArc(arc)) odometry_.reset();
-    // As backend_node does: the odometry of a new arc goes out before the refinement it triggers.
-    odometry_.advance(*backend_, step, [&](int64_t t_ns, const Pose3& T, double, double) {
-      odometry_trajectory_.push_back({t_ns, T});
-    });
-    backend_->process();
+    driver_->addArc(arc, newest_pending);
   }
-  if (job.at_end) backend_->finish();
+  if (job.at_end) driver_->finish();
   backend_s_ += secondsSince(t0);
 }
 
@@ -136,6 +145,23 @@ void OfflinePipeline::setBackendArcsFromTruth(Trajectory3 truth, double blend) {
   arc_truth_blend_ = blend;
 }
 
+void OfflinePipeline::setFrontendFollowsBackend(const FollowOptions& options, bool frontend_has_odometry) {
+  if (t_first_ >= 0) throw std::logic_error("setFrontendFollowsBackend: call it before the first events");
+  follower_ = FrontendFollower(options, frontend_has_odometry);
+}
+
+void OfflinePipeline::followBackend() {
+  waitBackend();
+  std::shared_ptr<const BSpline> spline;
+  {
+    std::lock_guard<std::mutex> lock(backend_mutex_);
+    spline = refined_;
+  }
+  if (!spline || spline == followed_) return;
+  followed_ = spline;
+  follower_.follow(*spline, t_last_, &frontend_);
+}
+
 void OfflinePipeline::addEvents(const EventVector& events) {
   if (events.empty()) return;
   if (t_first_ < 0) {
@@ -146,12 +172,18 @@ void OfflinePipeline::addEvents(const EventVector& events) {
   events_ += events.size();
   const auto t0 = Clock::now();
   BackendJob job;
-  frontend_.addEvents(events);
+  if (frontend_.addEvents(events)) {
+    int64_t oldest = events.front().t_ns;
+    for (const PixelEvent& e : events) oldest = std::min(oldest, e.t_ns);
+    follower_.reset(oldest);  // as frontend_node: splines from before the jump are not followed
+  }
   for (const ArcEstimate& a : frontend_.process()) arcs_.push_back(a), job.arcs.push_back(a);
   frontend_s_ += secondsSince(t0);
   if (!backend_) return;
   job.events = events;
+  const bool follow = follower_.changesArcs() && !job.arcs.empty();
   submitBackend(std::move(job));
+  if (follow) followBackend();
 }
 
 void OfflinePipeline::addOdometry(int64_t t_ns, double v, double w) {
@@ -308,7 +340,9 @@ nlohmann::json OfflinePipeline::report() const {
                              {"windows_split", st.windows_split},
                              {"windows_one_sided", st.windows_one_sided},
                              {"windows_one_sided_near", st.windows_one_sided_near},
-                             {"objective_evaluations", st.evaluations}};
+                             {"objective_evaluations", st.evaluations},
+                             {"follows_backend", follower_.changesArcs()},
+                             {"speeds_from_backend", follower_.speedsTaken()}};
   if (backend_) {
     const BackendStats& b = backend_->stats();
     j["stages"]["backend"] = {
@@ -325,6 +359,10 @@ nlohmann::json OfflinePipeline::report() const {
         {"refinements_accepted", b.accepted},
         {"mean_objective_gain", b.accepted > 0 ? b.gain_sum / double(b.accepted) : 0.0},
         {"arcs_held", b.arcs_held},
+        {"arcs_stale", driver_->stats().arcs_stale},
+        {"gaps", driver_->stats().gaps},
+        {"loops", driver_->stats().loops},
+        {"refinements_merged", driver_->stats().refinements_merged},
         {"resets", b.resets},
         {"events_outside_sensor", b.events_outside},
         {"events_out_of_order", b.events_out_of_order},

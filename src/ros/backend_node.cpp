@@ -120,6 +120,16 @@ void BackendNode::workerLoop() {
   try {
     camera_ = std::make_unique<CameraModel>(calibration);
     backend_ = std::make_unique<Backend>(backend_options_, *camera_, T_base_cam_);
+    BackendDriverOptions driver_options;
+    driver_options.odom_rate_hz = node_options_.odom_rate_hz;
+    driver_options.max_gap_s = node_options_.max_gap_s;
+    BackendDriver::Callbacks callbacks;
+    callbacks.odometry = [this](int64_t t_ns, const Pose3& T, double v, double omega) {
+      publishOdometry(t_ns, T, v, omega);
+    };
+    callbacks.refinement = [this](size_t merged) { publishRefinement(merged); };
+    callbacks.reset = [this](BackendDriver::ResetCause, const std::string& why) { onReset(why); };
+    driver_ = std::make_unique<BackendDriver>(backend_.get(), driver_options, callbacks);
   } catch (const std::exception& e) {
     ROS_ERROR("backend_node: the back-end cannot start: %s", e.what());
     return;
@@ -130,23 +140,18 @@ void BackendNode::workerLoop() {
     if (!input_.takeAll(&batch, std::chrono::milliseconds(100))) break;
     if (!batch.empty()) {
       const ros::WallTime start = ros::WallTime::now();
-      bool arcs = false;
+      int64_t newest_arc = -1;  // the batch's last arc
+      for (const Input& input : batch)
+        if (input.kind == Input::Kind::kArc) newest_arc = input.arc.t_end_ns;
       for (Input& input : batch) {
         try {
-          if (input.kind == Input::Kind::kEvents) {
+          if (input.kind == Input::Kind::kEvents)
             handleEvents(input.events);
-          } else {
-            handleArc(input.arc);
-            arcs = true;
-          }
+          else
+            handleArc(input.arc, newest_arc);
         } catch (const std::exception& e) {
           resetBackend(std::string("the back-end failed (") + e.what() + ")");
         }
-      }
-      try {
-        if (arcs) odometryAndRefinement();
-      } catch (const std::exception& e) {
-        resetBackend(std::string("the back-end failed (") + e.what() + ")");
       }
       busy_wall_s_ += (ros::WallTime::now() - start).toSec();
     }
@@ -154,39 +159,16 @@ void BackendNode::workerLoop() {
   }
 }
 
-void BackendNode::resetBackend(const std::string& why) {
-  backend_->reset();
-  reported_resets_ = backend_->stats().resets;
-  odometry_.reset();
+void BackendNode::resetBackend(const std::string& why) { driver_->reset(why); }
+
+void BackendNode::onReset(const std::string& why) {
   path_.poses.clear();
   ROS_WARN("backend_node: %s: back-end reset, the trajectory restarts at the identity (reset %zu)",
            why.c_str(), backend_->stats().resets);
 }
 
 void BackendNode::handleEvents(const EventVector& events) {
-  const int64_t first = events.front().t_ns;
-  if (newest_event_ns_ >= 0 && dtSec(first, newest_event_ns_) > node_options_.max_gap_s) {
-    ++gaps_;
-    resetBackend("no events for " + std::to_string(dtSec(first, newest_event_ns_)) +
-                 " s (> ~max_gap_s)");
-  }
-  const int64_t newest_before = newest_event_ns_;
-  backend_->addEvents(events);
-  if (backend_->stats().resets > reported_resets_) {
-    ++loops_;
-    reported_resets_ = backend_->stats().resets;
-    odometry_.reset();
-    path_.poses.clear();
-    ROS_WARN(
-        "backend_node: event time jumped back by %.3f s (%.3f -> %.3f s; a looped bag?): "
-        "back-end reset, the trajectory restarts at the identity (reset %zu)",
-        dtSec(newest_before, first), nsToSec(newest_before), nsToSec(first),
-        backend_->stats().resets);
-    newest_event_ns_ = events.back().t_ns;
-    newest_arc_ns_ = -1;
-  } else {
-    newest_event_ns_ = std::max(newest_event_ns_, events.back().t_ns);
-  }
+  driver_->addEvents(events);
   const BackendStats& s = backend_->stats();
   if (s.events_out_of_order > reported_out_of_order_) {
     ROS_WARN_THROTTLE(10,
@@ -196,59 +178,24 @@ void BackendNode::handleEvents(const EventVector& events) {
   }
 }
 
-void BackendNode::handleArc(ArcEstimate arc) {
-  if (newest_arc_ns_ >= 0 && arc.t_end_ns <= newest_arc_ns_ &&
-      arc.t_end_ns >= newest_arc_ns_ - secToNs(backend_options_.max_backwards_jump_s)) {
-    ++arcs_stale_;
-    ROS_WARN_THROTTLE(10, "backend_node: arc ending at %.3f s is not newer than %.3f s: ignored "
-                          "(%zu so far)",
-                      nsToSec(arc.t_end_ns), nsToSec(newest_arc_ns_), arcs_stale_);
-    return;
-  }
-  if (newest_arc_ns_ >= 0 && dtSec(arc.t_start_ns, newest_arc_ns_) > node_options_.max_gap_s) {
-    ++gaps_;
-    resetBackend("no arcs for " + std::to_string(dtSec(arc.t_start_ns, newest_arc_ns_)) +
-                 " s (> ~max_gap_s)");
-  }
-  if (arc.status == ArcStatus::kLost || arc.status == ArcStatus::kLowEvents ||
-      !std::isfinite(arc.omega) || !std::isfinite(arc.v)) {
-    // No motion estimate: the back-end holds the last measured rates through it.
-    ++arcs_lost_;
+void BackendNode::handleArc(const ArcEstimate& arc, int64_t newest_pending_arc_ns) {
+  const BackendDriverStats before = driver_->stats();
+  driver_->addArc(arc, newest_pending_arc_ns);
+  const BackendDriverStats& s = driver_->stats();
+  if (s.arcs_stale > before.arcs_stale)
+    ROS_WARN_THROTTLE(10, "backend_node: arc ending at %.3f s is not newer than the newest arc: ignored (%zu so far)",
+                      nsToSec(arc.t_end_ns), s.arcs_stale);
+  if (s.arcs_lost > before.arcs_lost)
     ROS_WARN_THROTTLE(10, "backend_node: arc at %.3f s is %s: the last good yaw rate and speed "
                           "are held through it (%zu so far)",
-                      nsToSec(arc.t_ref_ns), toString(arc.status), arcs_lost_);
-  }
-  if (backend_->addArc(arc)) {
-    ++loops_;
-    reported_resets_ = backend_->stats().resets;
-    odometry_.reset();
-    path_.poses.clear();
-    ROS_WARN("backend_node: arc time jumped back to %.3f s (from %.3f s; a looped bag?): back-end "
-             "reset, the trajectory restarts at the identity (reset %zu)",
-             nsToSec(arc.t_end_ns), nsToSec(newest_arc_ns_), backend_->stats().resets);
-  }
-  newest_arc_ns_ = arc.t_end_ns;
+                      nsToSec(arc.t_ref_ns), toString(arc.status), s.arcs_lost);
 }
 
-void BackendNode::odometryAndRefinement() {
-  // The odometry of the new arcs goes out first: it does not wait for the solver.
-  publishOdometry();
-  // One refinement covers every arc of the batch. A back-end that fell behind (a short CPU)
-  // refines less often over longer spans instead of queueing refinements it cannot afford,
-  // and then input it would have to drop.
-  const int64_t from = backend_->hasSpline() ? backend_->processedUntil() : backend_->oldestArcTime();
-  if (!backend_->process()) return;
-  const double intervals = dtSec(backend_->processedUntil(), from) / backend_options_.update_interval_s;
-  if (intervals >= 2.0) {
-    refinements_merged_ += size_t(intervals) - 1;
-    ROS_WARN_THROTTLE(10, "backend_node: behind: one refinement over %.1f s of arcs (%zu intervals merged so far)",
-                      dtSec(backend_->processedUntil(), from), refinements_merged_);
-  }
-  publishRefinement();
-}
-
-void BackendNode::publishRefinement() {
+void BackendNode::publishRefinement(size_t merged) {
   ++refinements_;
+  if (merged > 0)
+    ROS_WARN_THROTTLE(10, "backend_node: behind: one refinement over %zu update intervals (%zu merged so far)",
+                      merged + 1, driver_->stats().refinements_merged);
   if (!backend_->hasSpline()) return;
   const BSpline& spline = backend_->spline();
   trajectory_pub_.publish(splineToMsg(spline, backend_->firstFree(), frames::kOdom));
@@ -266,38 +213,36 @@ void BackendNode::publishRefinement() {
   path_pub_.publish(path_);
 }
 
-void BackendNode::publishOdometry() {
-  const int64_t step = std::max<int64_t>(1, secToNs(1.0 / node_options_.odom_rate_hz));
-  odometry_.advance(*backend_, step, [&](int64_t t_ns, const Pose3& T, double v, double omega) {
-    nav_msgs::Odometry odom;
-    odom.header.stamp = toRosTime(t_ns);
-    odom.header.frame_id = frames::kOdom;
-    odom.child_frame_id = frames::kBase;
-    odom.pose.pose = poseToMsg(T);
-    odom.twist.twist.linear.x = v;
-    odom.twist.twist.angular.z = omega;
-    odom_pub_.publish(odom);
-    if (tf_) {
-      geometry_msgs::TransformStamped tf;
-      tf.header = odom.header;
-      tf.child_frame_id = frames::kBase;
-      tf.transform = transformToMsg(T);
-      tf_->sendTransform(tf);
-    }
-  });
+void BackendNode::publishOdometry(int64_t t_ns, const Pose3& T, double v, double omega) {
+  nav_msgs::Odometry odom;
+  odom.header.stamp = toRosTime(t_ns);
+  odom.header.frame_id = frames::kOdom;
+  odom.child_frame_id = frames::kBase;
+  odom.pose.pose = poseToMsg(T);
+  odom.twist.twist.linear.x = v;
+  odom.twist.twist.angular.z = omega;
+  odom_pub_.publish(odom);
+  if (tf_) {
+    geometry_msgs::TransformStamped tf;
+    tf.header = odom.header;
+    tf.child_frame_id = frames::kBase;
+    tf.transform = transformToMsg(T);
+    tf_->sendTransform(tf);
+  }
 }
 
 void BackendNode::logStatus() {
   const ros::WallTime now = ros::WallTime::now();
   const BackendStats& s = backend_->stats();
+  const BackendDriverStats& d = driver_->stats();
   const NodeInputCounters in = input_.counters();
   ROS_INFO(
       "backend_node: %zu refinements (%zu reverted, %zu volumes, %.2f s in the solver), %zu "
-      "arcs in (%zu lost/low held, %zu stale), %zu events in (%zu outside, %zu late), %zu gaps, %zu loops, %zu resets, "
-      "%zu intervals merged behind; input: %s",
-      s.updates, s.rejected, s.volumes, s.solver_s, in[InputKind::kArc].in, arcs_lost_, arcs_stale_,
-      s.events_in, s.events_outside + in.events_outside, s.events_out_of_order, gaps_, loops_, s.resets,
-      refinements_merged_, input_.statusLine().c_str());
+      "arcs in (%zu lost/low held, %zu stale), %zu events in (%zu outside, %zu late), %zu gaps, "
+      "%zu loops, %zu resets, %zu intervals merged behind; input: %s",
+      s.updates, s.rejected, s.volumes, s.solver_s, in[InputKind::kArc].in, d.arcs_lost,
+      d.arcs_stale, s.events_in, s.events_outside + in.events_outside, s.events_out_of_order,
+      d.gaps, d.loops, s.resets, d.refinements_merged, input_.statusLine().c_str());
   last_status_ = now;
 }
 

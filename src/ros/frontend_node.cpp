@@ -179,6 +179,9 @@ void FrontendNode::workerLoop() {
   try {
     camera_ = std::make_unique<CameraModel>(calibration);
     frontend_ = std::make_unique<Frontend>(frontend_options_, *camera_, T_base_cam_);
+    FollowOptions follow;
+    follow.follow_backend = node_options_.follow_backend;
+    follower_ = FrontendFollower(follow, node_options_.use_odom);
   } catch (const std::exception& e) {
     ROS_ERROR("frontend_node: the front-end cannot start: %s", e.what());
     return;
@@ -237,8 +240,7 @@ void FrontendNode::handleEvents(const EventVector& events) {
         frontend_->stats().resets);
     recent_events_.clear();
     newest_event_ns_ = events.back().t_ns;
-    T_anchor_ = Pose3::Identity();
-    reset_ns_ = oldest;
+    follower_.reset(oldest);
   } else {
     newest_event_ns_ = std::max(newest_event_ns_, events.back().t_ns);
   }
@@ -266,18 +268,9 @@ void FrontendNode::handleEvents(const EventVector& events) {
 }
 
 void FrontendNode::handleTrajectory(const BSpline& spline) {
-  const int64_t t_end = spline.epochNs() + secToNs(spline.validTo());
-  // A spline from before a reset (a looped bag) or beyond the dead reckoning is not used.
-  if (!frontend_->hasPose() || spline.epochNs() < reset_ns_ || t_end > newest_event_ns_) return;
-  const double u = spline.validTo();
-  T_anchor_ = spline.T_odom_base(u) * frontend_->T_odom_base(t_end).inverse();
-  ++reanchors_;
-  const double v = spline.velocity(u).norm();
-  bool still = false;
-  for (const BSpline::Interval& s : spline.standstills()) still = still || (u >= s.from_s && u <= s.to_s);
-  if (!node_options_.use_odom && !still && std::isfinite(v) && v > 0.05) frontend_->setNominalSpeed(v);
+  if (!follower_.follow(spline, newest_event_ns_, frontend_.get())) return;
   ROS_INFO_THROTTLE(10, "frontend_node: re-anchored on the back-end's spline at %.3f s, speed %.3f m/s (%zu so far)",
-                    nsToSec(t_end), v, reanchors_);
+                    nsToSec(follower_.lastTime()), follower_.lastSpeed(), follower_.reanchors());
 }
 
 void FrontendNode::publishArc(const ArcEstimate& arc) {

@@ -7,10 +7,6 @@
 namespace vwe_vo {
 namespace sim {
 
-namespace {
-constexpr double kDeg = kPi / 180.0;
-}
-
 std::vector<ProfileSegment> circleProfile(double v, double omega, double duration_s) {
   return {{duration_s, v, omega}};
 }
@@ -23,17 +19,17 @@ std::vector<ProfileSegment> longIndoorProfile(double v, double standstill_s) {
   // Turn segments turn by exactly duration * omega (blends are antisymmetric).
   return {
       {3.0, v, 0.0},                    // straight
-      {3.0, 0.8 * v, 30 * kDeg},        // 90 deg left
+      {3.0, 0.8 * v, 30 * kRadPerDeg},        // 90 deg left
       {2.5, v, 0.0},                    //
-      {2.0, 0.7 * v, 45 * kDeg},        // 90 deg left, tighter
+      {2.0, 0.7 * v, 45 * kRadPerDeg},        // 90 deg left, tighter
       {1.5, 0.6 * v, 0.0},              // slow down
       {standstill_s + 0.4, 0.0, 0.0},   // standstill (exactly zero for standstill_s)
       {2.5, v, 0.0},                    // go again
-      {3.0, 0.8 * v, -30 * kDeg},       // 90 deg right
+      {3.0, 0.8 * v, -30 * kRadPerDeg},       // 90 deg right
       {2.0, v, 0.0},                    //
-      {2.0, 0.7 * v, 60 * kDeg},        // 120 deg left, fast yaw
+      {2.0, 0.7 * v, 60 * kRadPerDeg},        // 120 deg left, fast yaw
       {1.5, 1.2 * v, 0.0},              // faster straight
-      {3.0, 0.8 * v, 30 * kDeg},        // 90 deg left
+      {3.0, 0.8 * v, 30 * kRadPerDeg},        // 90 deg left
       {1.1, v, 0.0},
   };
 }
@@ -81,7 +77,7 @@ std::vector<SequenceSpec> standardSequences() {
     s.description = "lab room, turtlebot on a circle, 0.4 m/s, 25 deg/s (one loop)";
     s.scene = "indoor";
     s.seed = 11;
-    s.profile = circleProfile(0.4, 25 * kDeg, 14.4);
+    s.profile = circleProfile(0.4, 25 * kRadPerDeg, 14.4);
     s.simulator.seed = s.seed;
     out.push_back(s);
   }
@@ -112,7 +108,7 @@ std::vector<SequenceSpec> standardSequences() {
     s.description = "lab room circle 0.35 m/s, 20 deg/s; light toggles 1 <-> 0.05 every 4 s, more noise in the dark";
     s.scene = "indoor";
     s.seed = 14;
-    s.profile = circleProfile(0.35, 20 * kDeg, 18.0);
+    s.profile = circleProfile(0.35, 20 * kRadPerDeg, 18.0);
     s.simulator.seed = s.seed;
     s.simulator.illumination = IlluminationMode::kToggle;
     s.simulator.illumination_low = 0.05;
@@ -127,7 +123,7 @@ std::vector<SequenceSpec> standardSequences() {
     s.description = "lab room, figure eight at 0.35 m/s, +-30 deg/s";
     s.scene = "indoor";
     s.seed = 15;
-    s.profile = figureEightProfile(0.35, 30 * kDeg);
+    s.profile = figureEightProfile(0.35, 30 * kRadPerDeg);
     s.simulator.seed = s.seed;
     out.push_back(s);
   }
@@ -149,7 +145,7 @@ std::vector<SequenceSpec> standardSequences() {
     s.seed = 21;
     s.profile = streetProfile(s.seed, 40.0);
     // A car mount: 1.4 m above the road, 1.5 m ahead of the rear axle, pitched 5 deg down.
-    s.T_base_cam = mountToTBaseCam(Vec3(1.5, 0.0, 1.4), 0.0, 5.0 * kDeg, 0.0);
+    s.T_base_cam = mountToTBaseCam(Vec3(1.5, 0.0, 1.4), 0.0, 5.0 * kRadPerDeg, 0.0);
     s.simulator.seed = s.seed;
     out.push_back(s);
   }

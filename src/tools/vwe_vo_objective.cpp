@@ -44,8 +44,6 @@ constexpr const char* kUsage =
     "  --dump-events writes the window's events (`t_ns x y p`) before subsampling; --events\n"
     "  reads the window from such a file (events outside the window are ignored).\n";
 
-double yawOf(const vwe_vo::Pose3& T) { return std::atan2(T.linear()(1, 0), T.linear()(0, 0)); }
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -89,7 +87,7 @@ int main(int argc, char** argv) {
                                  std::to_string(vwe_vo::nsToSec(t0)) + ", " +
                                  std::to_string(vwe_vo::nsToSec(t1)) + "] s");
       const vwe_vo::Pose3 rel = A.inverse() * B;
-      omega_true = vwe_vo::wrapAngle(yawOf(rel)) / duration;
+      omega_true = vwe_vo::wrapAngle(vwe_vo::yawOf(rel.linear())) / duration;
       if (!args.count("--v")) v = rel.translation().head<2>().norm() / duration;
     }
 

@@ -31,7 +31,7 @@ const char* kUsage =
     "usage: vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out OUTDIR\n"
     "                      [--use-odom] [--frontend-only] [--backend-inline] [--events-topic T] [--odom-topic T]\n"
     "                      [--imu-topic T] [--no-map] [--depth-png] [--baseline] [--baseline-only] [--image-topic T] [--quiet]\n"
-    "                      [--start S] [--truth-arcs GT.tum [--truth-arcs-blend A]]\n"
+    "                      [--start S] [--truth-arcs GT.tum [--truth-arcs-blend A]] [--no-follow-backend]\n"
     "  Runs the front-end and the back-end over recorded events at full speed (a bag from S seconds\n"
     "  after its start with --start, as a live system that starts late). Writes\n"
     "  OUTDIR/frontend.tum, OUTDIR/arcs.csv, OUTDIR/report.json and (unless --frontend-only)\n"
@@ -41,6 +41,8 @@ const char* kUsage =
     "  into OUTDIR/map.ply (binary PLY, odom frame); --depth-png adds OUTDIR/depth/depth_NNNN.png\n"
     "  per keyframe. The back-end runs on its own thread beside the front-end (as the nodes do live);\n"
     "  --backend-inline runs it in the front-end's thread after each event chunk (same results).\n"
+    "  As frontend_node (~follow_backend, on by default), the front-end takes the back-end's speed\n"
+    "  after each refinement unless --use-odom gives it; --no-follow-backend keeps its nominal speed.\n"
     "  An ECD folder holds events.txt or events.txt.gz, calib.txt and optionally\n"
     "  extrinsics.txt (T_base_cam, overrides the config).\n"
     "  --baseline: also runs the frame-based baseline (KLT + 1-point Ackermann RANSAC) on the APS\n"
@@ -117,7 +119,7 @@ class Progress {
 int main(int argc, char** argv) {
   std::map<std::string, std::string> args;
   bool use_odom = false, quiet = false, frontend_only = false, backend_inline = false, map = true, depth_png = false;
-  bool baseline = false, baseline_only = false;
+  bool baseline = false, baseline_only = false, follow_backend = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
@@ -137,6 +139,8 @@ int main(int argc, char** argv) {
       baseline = true;
     } else if (a == "--baseline-only") {
       baseline = baseline_only = true;
+    } else if (a == "--no-follow-backend") {
+      follow_backend = false;
     } else if (a == "--quiet") {
       quiet = true;
     } else if ((a == "--bag" || a == "--ecd" || a == "--config" || a == "--nominal-speed" || a == "--out" ||
@@ -207,6 +211,9 @@ int main(int argc, char** argv) {
       input = {{"ecd", dir}};
     }
     vwe_vo::OfflinePipeline pipeline(cfg);
+    vwe_vo::FollowOptions follow;
+    follow.follow_backend = follow_backend;
+    pipeline.setFrontendFollowsBackend(follow, use_odom);
     if (args.count("--truth-arcs")) {
       pipeline.setBackendArcsFromTruth(vwe_vo::readTum(args["--truth-arcs"]), truth_blend);
     }

@@ -1,7 +1,5 @@
 #include "vwe_vo/trajectory/ackermann_arc.h"
 
-#include <algorithm>
-
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -95,35 +93,6 @@ Pose3 arcT_Cr_Ct(double omega, double v, double dt_s, const Pose3& T_base_cam, A
     vehicleToCameraDerivative(T_base_cam, Mat3::Zero(), jac_V.dp_dv, &dR_dv_C, &jac->dp_dv);
   }
   return vehicleToCamera(T_Vr_Vt, T_base_cam);
-}
-
-Pose3 arcPropagate(const Pose3& T_odom_Vr, int64_t t_ref_ns, double omega, double v, int64_t t_ns) {
-  return T_odom_Vr * arcT_Vr_Vt(omega, v, dtSec(t_ns, t_ref_ns));
-}
-
-ArcChain::ArcChain(const Pose3& T_odom_base_start, int64_t t_start_ns)
-    : T_odom_start_(T_odom_base_start), t_start_ns_(t_start_ns) {}
-
-void ArcChain::append(double omega, double v, int64_t t_end_ns) {
-  const int64_t t0 = endTime();
-  if (t_end_ns < t0) {
-    throw std::invalid_argument("ArcChain::append: t_end_ns " + std::to_string(t_end_ns) +
-                                " is before the chain's end time " + std::to_string(t0));
-  }
-  const Pose3 T_odom_V0 = segments_.empty()
-                              ? T_odom_start_
-                              : arcPropagate(segments_.back().T_odom_V0, segments_.back().t0_ns,
-                                             segments_.back().omega, segments_.back().v, t0);
-  segments_.push_back({t0, t_end_ns, omega, v, T_odom_V0});
-}
-
-Pose3 ArcChain::T_odom_base(int64_t t_ns) const {
-  if (segments_.empty()) return T_odom_start_;
-  // The first segment whose end is at or after t (the last one for t beyond the end).
-  const auto it = std::lower_bound(segments_.begin(), segments_.end() - 1, t_ns,
-                                   [](const Segment& s, int64_t t) { return s.t1_ns < t; });
-  const Segment& s = *it;
-  return arcPropagate(s.T_odom_V0, s.t0_ns, s.omega, s.v, t_ns);
 }
 
 AckermannArcModel::AckermannArcModel(double omega, double v, int64_t t_ref_ns,

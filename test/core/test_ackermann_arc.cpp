@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/trajectory/dead_reckoning.h"
 
 using namespace vwe_vo;
 

@@ -13,6 +13,7 @@
 
 #include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/trajectory/bspline.h"
+#include "vwe_vo/trajectory/dead_reckoning.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
 #include "vwe_vo/frontend/frontend.h"
@@ -245,7 +246,9 @@ class Backend {
   /// The front-end's dead reckoning the spline is fit to beyond its refined part (rates ramping
   /// between the arcs' middles with interpolate_arc_rates, else steps), in the back-end's first
   /// odom frame; the identity before the first arc.
-  Pose3 initialGuess(int64_t t_ns) const { return chain_ ? chain_->T_odom_base(t_ns) : Pose3::Identity(); }
+  Pose3 initialGuess(int64_t t_ns) const {
+    return dead_reckoning_ ? dead_reckoning_->ramped().T_odom_base(t_ns) : Pose3::Identity();
+  }
   /// Poses of base_link in odom every 1/rate_hz from the first arc to processedUntil().
   Trajectory3 sampleTrajectory(double rate_hz) const;
   const BackendStats& stats() const { return stats_; }
@@ -265,18 +268,12 @@ class Backend {
   VweObjectivePool objectives_;
   EventBuffer buffer_;
   std::vector<std::pair<int64_t, int64_t>> standstills_ns_;  // merged STANDSTILL arcs
-  std::unique_ptr<ArcChain> chain_;                          // front-end dead reckoning (the fit's start)
-  // The arcs as steps, each at its own rates over its own window: poseAt() beyond the spline. A
-  // pose published there is final (ContinuousOdometry), and the ramps of chain_ change behind the
-  // newest arc's middle when the next arc arrives, so they would put errors into /vwe/odom.
-  std::unique_ptr<ArcChain> steps_;
-  // The newest arc the chain reaches the middle of (interpolate_arc_rates): the chain ends at its
-  // t_ref and continues with its rates; the next arc appends the ramp between the two middles.
-  bool has_last_rates_ = false;
+  // The arcs' dead reckoning since the last reset: ramped() is what the spline's fit starts from,
+  // steps() is poseAt() beyond the spline (a pose published there is final, ContinuousOdometry).
+  std::unique_ptr<ArcDeadReckoning> dead_reckoning_;
   std::deque<ArcEstimate> arcs_;  // measured (OK) arcs of the last window (arc_rate_prior_weight)
   bool has_good_rates_ = false;   // the newest measured arc's rates (held through unmeasured arcs)
   double good_omega_ = 0.0, good_v_ = 0.0;
-  double last_omega_ = 0.0, last_v_ = 0.0;
   int64_t newest_arc_ns_ = -1;
   int64_t processed_ns_ = -1;
   int first_free_ = 0;

@@ -27,6 +27,7 @@
 #include <opencv2/core.hpp>
 
 #include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/trajectory/dead_reckoning.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/common/math.h"
 #include "vwe_vo/trajectory/stamped_trajectory.h"

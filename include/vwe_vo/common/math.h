@@ -17,6 +17,7 @@ using Pose3 = Eigen::Isometry3d;
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDegPerRad = 180.0 / kPi;
+constexpr double kRadPerDeg = kPi / 180.0;
 constexpr int64_t kNsPerSec = 1000000000LL;
 
 /// Time: the core keeps int64 nanoseconds; seconds (double) only for differences.

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/trajectory/dead_reckoning.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
 #include "vwe_vo/frontend/one_sided.h"
@@ -79,8 +80,8 @@ struct ArcEstimate {
   int evaluations = 0;          // objective evaluations spent
 };
 
-/// Dead reckoning through the arcs with omega and v interpolated linearly between the arcs'
-/// reference times (each arc estimates the mean rate over its window, i.e. the rate at its
+/// Dead reckoning through the arcs with omega and v ramping between the arcs' reference times
+/// (integrateRamps: each arc estimates the mean rate over its window, i.e. the rate at its
 /// middle), integrated in steps of step_ns. Poses of base_link in odom from the identity at the
 /// first arc's start to the last arc's end. Follows ramps in the yaw rate that a chain of
 /// constant arcs would turn into steps.

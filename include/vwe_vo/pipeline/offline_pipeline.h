@@ -1,8 +1,9 @@
 // The pipeline run at full speed over recorded data (the offline runner and the benchmarks): the
 // same core objects the nodes use, fed in time order, with timing per stage. As frontend_node and
 // backend_node do live, the back-end runs beside the front-end (its own thread, unless
-// config.backend_thread is false) and gets the same inputs in the same order: the results do not
-// depend on the threading.
+// config.backend_thread is false) through the same BackendDriver and gets the same inputs in the
+// same order, and the front-end can follow the back-end (FrontendFollower) as frontend_node does:
+// the results do not depend on the threading.
 #pragma once
 
 #include <chrono>
@@ -17,6 +18,7 @@
 #include <vector>
 
 #include "vwe_vo/backend/backend.h"
+#include "vwe_vo/backend/backend_driver.h"
 #include "vwe_vo/mapping/emvs.h"
 #include "vwe_vo/baseline/frame_baseline.h"
 #include "vwe_vo/frontend/frontend.h"
@@ -41,6 +43,13 @@ class OfflinePipeline {
   /// Processes what is left and waits for the back-end. Call once at the end. An error of the
   /// back-end's thread is rethrown here (or by the next addEvents).
   void finish();
+
+  /// The front-end follows the back-end's refined spline as frontend_node does
+  /// (FrontendFollower; off unless called): after each job whose arcs triggered a refinement,
+  /// the front-end takes the spline's speed before it goes on, unless frontend_has_odometry. Only
+  /// then does following change the outputs, so only then does the front-end wait for the
+  /// back-end's job (the two stages run in turn). Call before the first events.
+  void setFrontendFollowsBackend(const FollowOptions& options, bool frontend_has_odometry);
 
   /// Runs the frame-based baseline (config.baseline) on frames given to addFrame().
   void enableBaseline();
@@ -106,8 +115,12 @@ class OfflinePipeline {
   CameraModel camera_;
   Frontend frontend_;
   std::unique_ptr<Backend> backend_;
-  ContinuousOdometry odometry_;
+  std::unique_ptr<BackendDriver> driver_;  // feeds backend_ (on the back-end's thread)
   Trajectory3 odometry_trajectory_;
+  FrontendFollower follower_{FollowOptions{false, FollowOptions().min_speed_mps}};
+  std::shared_ptr<const BSpline> refined_;  // the newest refinement's spline (backend_mutex_)
+  std::shared_ptr<const BSpline> followed_;  // the last one the front-end followed
+  void followBackend();
   std::unique_ptr<FrameBaseline> baseline_;
   std::vector<ArcEstimate> arcs_;
   Trajectory3 arc_truth_;  // setBackendArcsFromTruth()

@@ -21,6 +21,7 @@
 #include "vwe_vo/AckermannArc.h"
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/backend/backend.h"
+#include "vwe_vo/backend/backend_driver.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/common/math.h"
@@ -68,13 +69,13 @@ class BackendNode {
 
   void workerLoop();
   void handleEvents(const EventVector& events);
-  void handleArc(ArcEstimate arc);
-  /// After a batch with arcs: publishes their odometry, then refines once over all of them.
-  void odometryAndRefinement();
+  /// newest_pending_arc_ns: the newest arc of the batch (BackendDriver's processing rule).
+  void handleArc(const ArcEstimate& arc, int64_t newest_pending_arc_ns);
   /// Resets the back-end and what was published from it (the odometry restarts at identity).
   void resetBackend(const std::string& why);
-  void publishRefinement();
-  void publishOdometry();
+  void onReset(const std::string& why);
+  void publishRefinement(size_t merged);
+  void publishOdometry(int64_t t_ns, const Pose3& T, double v, double omega);
   void logStatus();
 
   ros::NodeHandle nh_, pnh_;
@@ -91,12 +92,9 @@ class BackendNode {
   // Owned by the worker thread.
   std::unique_ptr<CameraModel> camera_;
   std::unique_ptr<Backend> backend_;
-  int64_t newest_event_ns_ = -1;
-  int64_t newest_arc_ns_ = -1;
-  ContinuousOdometry odometry_;  // /vwe/odom and tf without jumps at refinements
-  size_t arcs_lost_ = 0, arcs_stale_ = 0, gaps_ = 0, loops_ = 0, refinements_ = 0;
-  size_t refinements_merged_ = 0;  // update intervals folded into a later refinement (behind)
-  size_t reported_resets_ = 0, reported_out_of_order_ = 0;
+  std::unique_ptr<BackendDriver> driver_;  // feeds backend_: gaps, loops, stale arcs, odometry, refinements
+  size_t refinements_ = 0;
+  size_t reported_out_of_order_ = 0;
   nav_msgs::Path path_;
   double busy_wall_s_ = 0.0;
   ros::WallTime last_status_;

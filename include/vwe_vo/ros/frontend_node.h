@@ -18,6 +18,7 @@
 
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/SplineTrajectory.h"
+#include "vwe_vo/backend/backend_driver.h"
 #include "vwe_vo/trajectory/bspline.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/frontend/frontend.h"
@@ -74,9 +75,10 @@ class FrontendNode {
 
   void workerLoop();
   void handleEvents(const EventVector& events);
-  /// Re-anchors the published dead reckoning on the refined spline's end and takes its speed.
+  /// Re-anchors the published dead reckoning on the refined spline's end and takes its speed
+  /// (FrontendFollower).
   void handleTrajectory(const BSpline& spline);
-  Pose3 anchoredPose(int64_t t_ns) const { return T_anchor_ * frontend_->T_odom_base(t_ns); }
+  Pose3 anchoredPose(int64_t t_ns) const { return follower_.anchoredPose(*frontend_, t_ns); }
   void publishArc(const ArcEstimate& arc);
   void publishImage(const ArcEstimate& arc);
   void logStatus();
@@ -98,9 +100,7 @@ class FrontendNode {
   std::unique_ptr<VweImageRenderer> renderer_;
   EventVector recent_events_;     // events kept for the VWE image (only while it is watched)
   int64_t newest_event_ns_ = -1;  // for the size of a backwards jump
-  Pose3 T_anchor_ = Pose3::Identity();  // maps the dead reckoning onto the back-end's odom
-  int64_t reset_ns_ = -1;               // data time of the last reset (older splines ignored)
-  size_t reanchors_ = 0;
+  FrontendFollower follower_;  // the anchor on the back-end's odom and the speed it gives
   size_t windows_ok_ = 0, windows_standstill_ = 0, windows_lost_ = 0, windows_low_ = 0;
   size_t reported_out_of_order_ = 0;
   double busy_wall_s_ = 0.0,

@@ -35,35 +35,6 @@ Pose3 vehicleToCamera(const Pose3& T_Vr_Vt, const Pose3& T_base_cam);
 void vehicleToCameraDerivative(const Pose3& T_base_cam, const Mat3& dR_V, const Vec3& dp_V,
                                Mat3* dR_C, Vec3* dp_C);
 
-/// Dead reckoning along one arc: the pose of base_link in odom at t_ns, given its pose
-/// T_odom_Vr at the arc's reference time t_ref_ns.
-Pose3 arcPropagate(const Pose3& T_odom_Vr, int64_t t_ref_ns, double omega, double v, int64_t t_ns);
-
-/// Dead reckoning along a chain of arcs: starting from T_odom_base at t_start_ns, each
-/// appended arc (omega, v) runs from the previous end time to its own end time. Poses before
-/// the start or after the end extrapolate the first / last arc.
-class ArcChain {
- public:
-  ArcChain(const Pose3& T_odom_base_start, int64_t t_start_ns);
-  /// Appends an arc from endTime() to t_end_ns; throws std::invalid_argument if
-  /// t_end_ns < endTime().
-  void append(double omega, double v, int64_t t_end_ns);
-  Pose3 T_odom_base(int64_t t_ns) const;
-  int64_t startTime() const { return t_start_ns_; }
-  int64_t endTime() const { return segments_.empty() ? t_start_ns_ : segments_.back().t1_ns; }
-  size_t numArcs() const { return segments_.size(); }
-
- private:
-  struct Segment {
-    int64_t t0_ns, t1_ns;
-    double omega, v;
-    Pose3 T_odom_V0;  // pose at t0_ns, the arc's reference
-  };
-  Pose3 T_odom_start_;
-  int64_t t_start_ns_;
-  std::vector<Segment> segments_;
-};
-
 /// The arc as a TrajectoryModel: theta = [omega, v] (indices 0 and 1).
 class AckermannArcModel : public TrajectoryModel {
  public:

@@ -98,6 +98,8 @@ class BSpline {
   /// Standstills: sorted, non-overlapping, from_s <= to_s (throws std::invalid_argument).
   void setStandstills(const std::vector<Interval>& standstills);
   const std::vector<Interval>& standstills() const { return standstills_; }
+  /// The standstill containing u (its ends included), or null.
+  const Interval* standstillAt(double u) const;
   /// Speed [m/s] below which the tangent is not trusted for the heading (> 0).
   void setMinSpeed(double min_speed_mps);
   double minSpeed() const { return min_speed_mps_; }
@@ -131,7 +133,6 @@ class BSpline {
     bool has_tangent;  // false: defaultHeading()
   };
   PoseSource poseSource(double u) const;
-  const Interval* standstillAt(double u) const;
   bool usableTangent(double u) const;
   void validate() const;
 
