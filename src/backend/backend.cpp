@@ -1,4 +1,5 @@
 #include "vwe_vo/backend/backend.h"
+#include "vwe_vo/common/validated.h"
 
 #include <ceres/gradient_problem.h>
 #include <ceres/gradient_problem_solver.h>
@@ -12,9 +13,9 @@
 
 namespace vwe_vo {
 
-void BackendOptions::validate() const {
-  auto fail = [](const std::string& m) { throw std::invalid_argument("BackendOptions: " + m); };
-  volume.validate();
+void BackendOptions::validate(const std::string& section) const {
+  auto fail = [&](const std::string& m) { throw std::invalid_argument(section + "." + m); };
+  volume.validate(section + ".volume");
   if (!(degree >= 1 && degree <= 5)) fail("degree must be in [1, 5]");
   if (!(knot_spacing_s >= 0.02 && knot_spacing_s <= 10))
     fail("knot_spacing_s must be in [0.02, 10] s");
@@ -283,7 +284,7 @@ Backend::Backend(const BackendOptions& options, const CameraModel& camera, const
     : options_(options),
       camera_(camera),
       T_base_cam_(T_base_cam),
-      objectives_(camera_, (options.validate(), options.volume)) {}
+      objectives_(camera_, validated(options).volume) {}
 
 void Backend::reset() {
   buffer_.clear();

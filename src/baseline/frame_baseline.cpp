@@ -33,8 +33,8 @@ std::string fmt(const char* f, double a, double b = 0) {
 
 }  // namespace
 
-void FrameBaselineOptions::validate() const {
-  auto fail = [](const std::string& m) { throw std::invalid_argument("FrameBaselineOptions." + m); };
+void FrameBaselineOptions::validate(const std::string& section) const {
+  auto fail = [&](const std::string& m) { throw std::invalid_argument(section + "." + m); };
   if (max_features < 8) fail("max_features must be >= 8");
   if (!(quality_level > 0 && quality_level < 1)) fail("quality_level must be in (0, 1)");
   if (!(min_distance_px >= 1)) fail("min_distance_px must be >= 1 [px]");

@@ -1,4 +1,5 @@
 #include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/common/validated.h"
 
 #include <algorithm>
 #include <cmath>
@@ -79,9 +80,9 @@ const char* toString(ArcStatus s) {
   return "?";
 }
 
-void FrontendOptions::validate() const {
-  auto fail = [](const std::string& m) { throw std::invalid_argument("FrontendOptions: " + m); };
-  volume.validate();
+void FrontendOptions::validate(const std::string& section) const {
+  auto fail = [&](const std::string& m) { throw std::invalid_argument(section + "." + m); };
+  volume.validate(section + ".volume");
   if (!(window_duration_s > 0.005 && window_duration_s <= 5.0)) fail("window_duration_s must be in (0.005, 5] s");
   if (!(window_stride_s >= 0 && window_stride_s <= window_duration_s))
     fail("window_stride_s must be in [0, window_duration_s] (0: equal to window_duration_s)");
@@ -106,14 +107,14 @@ void FrontendOptions::validate() const {
   if (!(rescan_confidence >= 0 && rescan_confidence < 1)) fail("rescan_confidence must be in [0, 1)");
   if (!(gyro_prior_half_range_rad_s > 0)) fail("gyro_prior_half_range_rad_s must be positive");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
-  one_sided.validate(volume, "FrontendOptions");
+  one_sided.validate(volume, section);
 }
 
 Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera, const Pose3& T_base_cam)
     : options_(options),
       camera_(camera),
       T_base_cam_(T_base_cam),
-      volume_((options.validate(), options.volume), camera.width(), camera.height(), camera.calibration().fx,
+      volume_(validated(options).volume, camera.width(), camera.height(), camera.calibration().fx,
               camera.calibration().fy, camera.calibration().cx, camera.calibration().cy),
       objective_(camera_, &volume_),
       scan_objectives_(camera_, options_.volume),

@@ -5,8 +5,8 @@
 
 namespace vwe_vo {
 
-void OneSidedOptions::validate(const VolumeOptions& normal, const std::string& owner) const {
-  auto fail = [&](const std::string& m) { throw std::invalid_argument(owner + ": one_sided_" + m); };
+void OneSidedOptions::validate(const VolumeOptions& normal, const std::string& section) const {
+  auto fail = [&](const std::string& m) { throw std::invalid_argument(section + ".one_sided_" + m); };
   if (!(balance >= 0 && balance < 1)) fail("balance must be in [0, 1)");
   if (balance == 0) return;
   if (!(z_min_m > normal.z_min_m && z_min_m < normal.z_max_m)) fail("z_min_m must be in (volume.z_min_m, volume.z_max_m)");

@@ -32,15 +32,29 @@ std::vector<double> readVector(const YAML::Node& n, const std::string& key, size
 }
 }  // namespace
 
-Pose3 loadTBaseCam(const std::string& path) {
+Pose3 loadTBaseCam(const std::string& path, std::vector<std::string>* warnings) {
   YAML::Node root;
   try {
     root = YAML::LoadFile(path);
   } catch (const YAML::Exception& e) {
     throw std::runtime_error(path + ": cannot read: " + e.what());
   }
+  return loadTBaseCam(root, path, warnings);
+}
+
+Pose3 loadTBaseCam(const YAML::Node& root, const std::string& path, std::vector<std::string>* warnings) {
   const YAML::Node n = root["T_base_cam"];
   if (!n) return defaultTBaseCam();
+  if (!n.IsMap()) throw std::runtime_error(path + ": T_base_cam must be a map");
+  for (const auto& kv : n) {
+    const std::string key = kv.first.as<std::string>();
+    if (key == "translation" || key == "rpy_deg" || key == "quaternion_xyzw") continue;
+    const std::string message = "unknown key 'T_base_cam." + key + "' ignored";
+    if (!warnings) throw std::runtime_error(path + ": " + message);
+    warnings->push_back(path + ": " + message);
+  }
+  if (n["rpy_deg"] && n["quaternion_xyzw"])
+    throw std::runtime_error(path + ": T_base_cam: give rpy_deg or quaternion_xyzw, not both");
   try {
     const auto t = readVector(n, "translation", 3, path);
     if (n["quaternion_xyzw"]) {

@@ -17,202 +17,279 @@
 namespace vwe_vo {
 namespace {
 
-/// Reads keys of one YAML map into typed fields and remembers which keys were used.
-class Section {
+/// Reads the keys of one YAML map (the section `path`, e.g. "backend.volume") into typed fields
+/// and reports the keys it did not use.
+class Reader {
  public:
-  Section(const YAML::Node& parent, const std::string& name) : name_(name) {
+  Reader(const YAML::Node& parent, const std::string& key, const std::string& path,
+         std::vector<std::string>* warnings)
+      : path_(path), warnings_(warnings) {
     // Const access only: yaml-cpp's non-const operator[] inserts missing keys.
     const YAML::Node& p = parent;
-    present_ = p && p.IsMap() && p[name] && !p[name].IsNull();
-    if (present_) node_ = p[name];
+    present_ = p && p.IsMap() && p[key] && !p[key].IsNull();
+    if (present_) node_ = p[key];
     if (present_ && !node_.IsMap())
-      throw std::invalid_argument("section '" + name + "' must be a map");
+      throw std::invalid_argument("section '" + path_ + "' must be a map");
   }
   template <typename T>
-  void get(const char* key, T* value) {
+  void operator()(const char* key, T* value) {
     used_.insert(key);
     const YAML::Node& n = node_;
     if (!present_ || !n[key]) return;
     try {
       *value = n[key].as<T>();
     } catch (const YAML::Exception& e) {
-      throw std::invalid_argument(name_ + "." + key + ": cannot read value (" + e.what() + ")");
+      throw std::invalid_argument(path_ + "." + key + ": cannot read value (" + e.what() + ")");
     }
   }
-  void nested(const char* key) { used_.insert(key); }
-  void reportUnknown(std::vector<std::string>* warnings) const {
-    if (!present_ || !warnings) return;
+  void operator()(const char* key, Contrast* value) {
+    std::string name = contrastName(*value);
+    (*this)(key, &name);
+    if (name == contrastName(Contrast::kVariance))
+      *value = Contrast::kVariance;
+    else if (name == contrastName(Contrast::kDensityPerVote))
+      *value = Contrast::kDensityPerVote;
+    else
+      throw std::invalid_argument(path_ + "." + key + ": '" + name +
+                                  "' is neither variance nor density_per_vote");
+  }
+  Reader section(const char* key) {
+    used_.insert(key);
+    return Reader(node_, key, path_ + "." + key, warnings_);
+  }
+  /// Reports the keys of the section that no field read.
+  void done() const {
+    if (!present_ || !warnings_) return;
     for (const auto& kv : node_) {
       const std::string k = kv.first.as<std::string>();
-      if (!used_.count(k)) warnings->push_back("unknown key '" + name_ + "." + k + "' ignored");
+      if (!used_.count(k)) warnings_->push_back("unknown key '" + path_ + "." + k + "' ignored");
     }
   }
-  const YAML::Node& node() const { return node_; }
-  bool present() const { return present_; }
 
  private:
-  std::string name_;
+  std::string path_;
+  std::vector<std::string>* warnings_;
   YAML::Node node_;
   std::set<std::string> used_;
   bool present_ = false;
 };
 
-}  // namespace
+/// Writes fields under their keys into a YAML map.
+class Writer {
+ public:
+  explicit Writer(YAML::Node node) : node_(node) {}
+  template <typename T>
+  void operator()(const char* key, T* value) {
+    node_[key] = *value;
+  }
+  void operator()(const char* key, Contrast* value) { node_[key] = contrastName(*value); }
+  Writer section(const char* key) {
+    node_[key] = YAML::Node(YAML::NodeType::Map);
+    return Writer(node_[key]);
+  }
+  void done() const {}
 
-void loadOptions(const YAML::Node& node, const std::string& section, VolumeOptions* o,
-                 std::vector<std::string>* warnings) {
-  Section s(node, section);
-  s.get("grid_scale", &o->grid_scale);
-  std::string contrast = contrastName(o->contrast);
-  s.get("contrast", &contrast);
-  if (contrast == contrastName(Contrast::kVariance))
-    o->contrast = Contrast::kVariance;
-  else if (contrast == contrastName(Contrast::kDensityPerVote))
-    o->contrast = Contrast::kDensityPerVote;
-  else
-    throw std::invalid_argument(section + ".contrast: '" + contrast +
-                                "' is neither variance nor density_per_vote");
-  s.get("margin_px", &o->margin_px);
-  s.get("num_planes", &o->num_planes);
-  s.get("z_min_m", &o->z_min_m);
-  s.get("z_max_m", &o->z_max_m);
-  s.get("num_threads", &o->num_threads);
-  s.get("pose_slice_s", &o->pose_slice_s);
-  s.reportUnknown(warnings);
-  o->validate();
+ private:
+  YAML::Node node_;
+};
+
+// The keys of every options struct, once for the loader (Reader) and the emitter (Writer).
+
+/// `vwe`: the VWE's volume (front-end, back-end); the EMVS DSI has no contrast and no pose slice.
+template <typename Archive>
+void fields(Archive& a, VolumeOptions* o, bool vwe) {
+  a("grid_scale", &o->grid_scale);
+  if (vwe) a("contrast", &o->contrast);
+  a("margin_px", &o->margin_px);
+  a("num_planes", &o->num_planes);
+  a("z_min_m", &o->z_min_m);
+  a("z_max_m", &o->z_max_m);
+  a("num_threads", &o->num_threads);
+  if (vwe) a("pose_slice_s", &o->pose_slice_s);
 }
+
+template <typename Archive>
+void nestedVolume(Archive& a, VolumeOptions* o, bool vwe) {
+  Archive v = a.section("volume");
+  fields(v, o, vwe);
+  v.done();
+}
+
+template <typename Archive>
+void fields(Archive& a, FrontendOptions* o) {
+  nestedVolume(a, &o->volume, true);
+  a("window_by_count", &o->window_by_count);
+  a("window_duration_s", &o->window_duration_s);
+  a("window_stride_s", &o->window_stride_s);
+  a("window_events", &o->window_events);
+  a("max_events_per_volume", &o->max_events_per_volume);
+  a("subsample_time_slices", &o->subsample_time_slices);
+  a("nominal_speed_mps", &o->nominal_speed_mps);
+  a("omega_max_rad_s", &o->omega_max_rad_s);
+  a("scan_half_range_rad_s", &o->scan_half_range_rad_s);
+  a("scan_step_rad_s", &o->scan_step_rad_s);
+  a("full_scan_step_rad_s", &o->full_scan_step_rad_s);
+  a("full_scan_candidates", &o->full_scan_candidates);
+  a("full_scan_max_events", &o->full_scan_max_events);
+  a("refine_tolerance_rad_s", &o->refine_tolerance_rad_s);
+  a("standstill_event_rate_hz", &o->standstill_event_rate_hz);
+  a("standstill_speed_mps", &o->standstill_speed_mps);
+  a("min_events", &o->min_events);
+  a("min_confidence", &o->min_confidence);
+  a("rescan_confidence", &o->rescan_confidence);
+  a("one_sided_balance", &o->one_sided.balance);
+  a("one_sided_z_min_m", &o->one_sided.z_min_m);
+  a("one_sided_min_depth_m", &o->one_sided.min_depth_m);
+  a("split_omega_change_rad_s", &o->split_omega_change_rad_s);
+  a("use_gyro_prior", &o->use_gyro_prior);
+  a("gyro_prior_half_range_rad_s", &o->gyro_prior_half_range_rad_s);
+  a("max_backwards_jump_s", &o->max_backwards_jump_s);
+  a("seed", &o->seed);
+}
+
+template <typename Archive>
+void fields(Archive& a, BackendOptions* o) {
+  nestedVolume(a, &o->volume, true);
+  a("degree", &o->degree);
+  a("knot_spacing_s", &o->knot_spacing_s);
+  a("tau1_s", &o->tau1_s);
+  a("tau2_s", &o->tau2_s);
+  a("window_s", &o->window_s);
+  a("update_interval_s", &o->update_interval_s);
+  a("max_events_per_volume", &o->max_events_per_volume);
+  a("min_events_per_volume", &o->min_events_per_volume);
+  a("max_iterations", &o->max_iterations);
+  a("function_tolerance", &o->function_tolerance);
+  a("max_line_search_steps", &o->max_line_search_steps);
+  a("step_scale_per_span", &o->step_scale_per_span);
+  a("init_sample_interval_s", &o->init_sample_interval_s);
+  a("smoothness_weight", &o->smoothness_weight);
+  a("interpolate_arc_rates", &o->interpolate_arc_rates);
+  a("speed_prior_weight", &o->speed_prior_weight);
+  a("deformation_weight", &o->deformation_weight);
+  a("arc_rate_prior_weight", &o->arc_rate_prior_weight);
+  a("max_backwards_jump_s", &o->max_backwards_jump_s);
+  a("output_rate_hz", &o->output_rate_hz);
+  a("seed", &o->seed);
+}
+
+template <typename Archive>
+void fields(Archive& a, GlobalMapOptions* o) {
+  a("voxel_size_m", &o->voxel_size_m);
+  a("max_points", &o->max_points);
+}
+
+template <typename Archive>
+void fields(Archive& a, EmvsOptions* o, GlobalMapOptions* global_map) {
+  nestedVolume(a, &o->volume, false);
+  Archive g = a.section("global_map");
+  fields(g, global_map);
+  g.done();
+  a("adaptive_kernel_size", &o->adaptive_kernel_size);
+  a("adaptive_sigma_px", &o->adaptive_sigma_px);
+  a("adaptive_c", &o->adaptive_c);
+  a("min_confidence", &o->min_confidence);
+  a("nms_radius_px", &o->nms_radius_px);
+  a("nms_planes", &o->nms_planes);
+  a("local_max_ratio", &o->local_max_ratio);
+  a("local_max_window_px", &o->local_max_window_px);
+  a("median_filter_size", &o->median_filter_size);
+  a("subpixel", &o->subpixel);
+  a("max_depth_m", &o->max_depth_m);
+  a("outlier_radius_m", &o->outlier_radius_m);
+  a("outlier_min_neighbours", &o->outlier_min_neighbours);
+  a("kf_distance_m", &o->kf_distance_m);
+  a("kf_rotation_deg", &o->kf_rotation_deg);
+  a("max_events_per_keyframe", &o->max_events_per_keyframe);
+  a("pose_slice_ns", &o->pose_slice_ns);
+  a("max_pending_events", &o->max_pending_events);
+  a("max_event_rate_hz", &o->max_event_rate_hz);
+}
+
+/// nominal_speed_mps is no key: the baseline drives at frontend.nominal_speed_mps.
+template <typename Archive>
+void fields(Archive& a, FrameBaselineOptions* o) {
+  a("max_features", &o->max_features);
+  a("quality_level", &o->quality_level);
+  a("min_distance_px", &o->min_distance_px);
+  a("klt_window_px", &o->klt_window_px);
+  a("klt_levels", &o->klt_levels);
+  a("max_fb_error_px", &o->max_fb_error_px);
+  a("border_px", &o->border_px);
+  a("min_tracks", &o->min_tracks);
+  a("min_inliers", &o->min_inliers);
+  a("min_inlier_fraction", &o->min_inlier_fraction);
+  a("inlier_threshold_px", &o->inlier_threshold_px);
+  a("max_hypotheses", &o->max_hypotheses);
+  a("omega_max_rad_s", &o->omega_max_rad_s);
+  a("standstill_speed_mps", &o->standstill_speed_mps);
+  a("odom_max_age_s", &o->odom_max_age_s);
+  a("min_contrast_dn", &o->min_contrast_dn);
+  a("max_saturated_fraction", &o->max_saturated_fraction);
+  a("min_median_flow_px", &o->min_median_flow_px);
+  a("max_frame_gap_s", &o->max_frame_gap_s);
+  a("seed", &o->seed);
+}
+
+template <typename Options>
+void load(const YAML::Node& node, const std::string& section, Options* o,
+          std::vector<std::string>* warnings) {
+  Reader r(node, section, section, warnings);
+  fields(r, o);
+  r.done();
+  o->validate(section);
+}
+
+template <typename Options>
+void emit(YAML::Node* root, const char* section, Options o) {
+  Writer w = Writer(*root).section(section);
+  fields(w, &o);
+}
+
+}  // namespace
 
 void loadOptions(const YAML::Node& node, const std::string& section, FrontendOptions* o,
                  std::vector<std::string>* warnings) {
-  Section s(node, section);
-  s.nested("volume");
-  if (s.present()) loadOptions(s.node(), "volume", &o->volume, warnings);
-  s.get("window_by_count", &o->window_by_count);
-  s.get("window_duration_s", &o->window_duration_s);
-  s.get("window_stride_s", &o->window_stride_s);
-  s.get("window_events", &o->window_events);
-  s.get("max_events_per_volume", &o->max_events_per_volume);
-  s.get("subsample_time_slices", &o->subsample_time_slices);
-  s.get("nominal_speed_mps", &o->nominal_speed_mps);
-  s.get("omega_max_rad_s", &o->omega_max_rad_s);
-  s.get("scan_half_range_rad_s", &o->scan_half_range_rad_s);
-  s.get("scan_step_rad_s", &o->scan_step_rad_s);
-  s.get("full_scan_step_rad_s", &o->full_scan_step_rad_s);
-  s.get("full_scan_candidates", &o->full_scan_candidates);
-  s.get("full_scan_max_events", &o->full_scan_max_events);
-  s.get("refine_tolerance_rad_s", &o->refine_tolerance_rad_s);
-  s.get("standstill_event_rate_hz", &o->standstill_event_rate_hz);
-  s.get("standstill_speed_mps", &o->standstill_speed_mps);
-  s.get("min_events", &o->min_events);
-  s.get("min_confidence", &o->min_confidence);
-  s.get("rescan_confidence", &o->rescan_confidence);
-  s.get("one_sided_balance", &o->one_sided.balance);
-  s.get("one_sided_z_min_m", &o->one_sided.z_min_m);
-  s.get("one_sided_min_depth_m", &o->one_sided.min_depth_m);
-  s.get("split_omega_change_rad_s", &o->split_omega_change_rad_s);
-  s.get("use_gyro_prior", &o->use_gyro_prior);
-  s.get("gyro_prior_half_range_rad_s", &o->gyro_prior_half_range_rad_s);
-  s.get("max_backwards_jump_s", &o->max_backwards_jump_s);
-  s.get("seed", &o->seed);
-  s.reportUnknown(warnings);
-  o->validate();
+  load(node, section, o, warnings);
 }
 
 void loadOptions(const YAML::Node& node, const std::string& section, BackendOptions* o,
                  std::vector<std::string>* warnings) {
-  Section s(node, section);
-  s.nested("volume");
-  if (s.present()) loadOptions(s.node(), "volume", &o->volume, warnings);
-  s.get("degree", &o->degree);
-  s.get("knot_spacing_s", &o->knot_spacing_s);
-  s.get("tau1_s", &o->tau1_s);
-  s.get("tau2_s", &o->tau2_s);
-  s.get("window_s", &o->window_s);
-  s.get("update_interval_s", &o->update_interval_s);
-  s.get("max_events_per_volume", &o->max_events_per_volume);
-  s.get("min_events_per_volume", &o->min_events_per_volume);
-  s.get("max_iterations", &o->max_iterations);
-  s.get("function_tolerance", &o->function_tolerance);
-  s.get("max_line_search_steps", &o->max_line_search_steps);
-  s.get("step_scale_per_span", &o->step_scale_per_span);
-  s.get("init_sample_interval_s", &o->init_sample_interval_s);
-  s.get("smoothness_weight", &o->smoothness_weight);
-  s.get("interpolate_arc_rates", &o->interpolate_arc_rates);
-  s.get("speed_prior_weight", &o->speed_prior_weight);
-  s.get("deformation_weight", &o->deformation_weight);
-  s.get("arc_rate_prior_weight", &o->arc_rate_prior_weight);
-  s.get("max_backwards_jump_s", &o->max_backwards_jump_s);
-  s.get("output_rate_hz", &o->output_rate_hz);
-  s.get("seed", &o->seed);
-  s.reportUnknown(warnings);
-  o->validate();
-}
-
-void loadOptions(const YAML::Node& node, const std::string& section, GlobalMapOptions* o,
-                 std::vector<std::string>* warnings) {
-  Section s(node, section);
-  s.get("voxel_size_m", &o->voxel_size_m);
-  s.get("max_points", &o->max_points);
-  s.reportUnknown(warnings);
-  o->validate();
+  load(node, section, o, warnings);
 }
 
 void loadOptions(const YAML::Node& node, const std::string& section, EmvsOptions* o,
                  GlobalMapOptions* global_map, std::vector<std::string>* warnings) {
-  Section s(node, section);
-  s.nested("volume");
-  s.nested("global_map");
-  if (s.present()) {
-    loadOptions(s.node(), "volume", &o->volume, warnings);
-    loadOptions(s.node(), "global_map", global_map, warnings);
-  }
-  s.get("adaptive_kernel_size", &o->adaptive_kernel_size);
-  s.get("adaptive_sigma_px", &o->adaptive_sigma_px);
-  s.get("adaptive_c", &o->adaptive_c);
-  s.get("min_confidence", &o->min_confidence);
-  s.get("nms_radius_px", &o->nms_radius_px);
-  s.get("nms_planes", &o->nms_planes);
-  s.get("local_max_ratio", &o->local_max_ratio);
-  s.get("local_max_window_px", &o->local_max_window_px);
-  s.get("median_filter_size", &o->median_filter_size);
-  s.get("subpixel", &o->subpixel);
-  s.get("max_depth_m", &o->max_depth_m);
-  s.get("outlier_radius_m", &o->outlier_radius_m);
-  s.get("outlier_min_neighbours", &o->outlier_min_neighbours);
-  s.get("kf_distance_m", &o->kf_distance_m);
-  s.get("kf_rotation_deg", &o->kf_rotation_deg);
-  s.get("max_events_per_keyframe", &o->max_events_per_keyframe);
-  s.get("pose_slice_ns", &o->pose_slice_ns);
-  s.get("max_pending_events", &o->max_pending_events);
-  s.get("max_event_rate_hz", &o->max_event_rate_hz);
-  s.reportUnknown(warnings);
-  o->validate();
+  Reader r(node, section, section, warnings);
+  fields(r, o, global_map);
+  r.done();
+  o->validate(section);
+  global_map->validate(section + ".global_map");
 }
 
 void loadOptions(const YAML::Node& node, const std::string& section, FrameBaselineOptions* o,
                  std::vector<std::string>* warnings) {
-  Section s(node, section);
-  s.get("max_features", &o->max_features);
-  s.get("quality_level", &o->quality_level);
-  s.get("min_distance_px", &o->min_distance_px);
-  s.get("klt_window_px", &o->klt_window_px);
-  s.get("klt_levels", &o->klt_levels);
-  s.get("max_fb_error_px", &o->max_fb_error_px);
-  s.get("border_px", &o->border_px);
-  s.get("min_tracks", &o->min_tracks);
-  s.get("min_inliers", &o->min_inliers);
-  s.get("min_inlier_fraction", &o->min_inlier_fraction);
-  s.get("inlier_threshold_px", &o->inlier_threshold_px);
-  s.get("max_hypotheses", &o->max_hypotheses);
-  s.get("omega_max_rad_s", &o->omega_max_rad_s);
-  s.get("standstill_speed_mps", &o->standstill_speed_mps);
-  s.get("odom_max_age_s", &o->odom_max_age_s);
-  s.get("min_contrast_dn", &o->min_contrast_dn);
-  s.get("max_saturated_fraction", &o->max_saturated_fraction);
-  s.get("min_median_flow_px", &o->min_median_flow_px);
-  s.get("max_frame_gap_s", &o->max_frame_gap_s);
-  s.reportUnknown(warnings);
-  o->validate();
+  load(node, section, o, warnings);
+}
+
+YAML::Node optionsToYaml(const PipelineConfig& cfg) {
+  YAML::Node root(YAML::NodeType::Map);
+  const Quat q(cfg.T_base_cam.linear());
+  YAML::Node mount(YAML::NodeType::Map);
+  const Vec3 t = cfg.T_base_cam.translation();
+  mount["translation"] = std::vector<double>{t.x(), t.y(), t.z()};
+  mount["quaternion_xyzw"] = std::vector<double>{q.x(), q.y(), q.z(), q.w()};
+  mount["translation"].SetStyle(YAML::EmitterStyle::Flow);
+  mount["quaternion_xyzw"].SetStyle(YAML::EmitterStyle::Flow);
+  root["T_base_cam"] = mount;
+  emit(&root, "frontend", cfg.frontend);
+  emit(&root, "backend", cfg.backend);
+  EmvsOptions mapping = cfg.mapping;
+  GlobalMapOptions global_map = cfg.global_map;
+  Writer m = Writer(root).section("mapping");
+  fields(m, &mapping, &global_map);
+  emit(&root, "baseline", cfg.baseline);
+  return root;
 }
 
 PipelineConfig loadPipelineConfig(const std::string& path,
@@ -229,8 +306,8 @@ PipelineConfig loadPipelineConfig(const std::string& path,
     } catch (const YAML::Exception& e) {
       throw std::runtime_error(path + ": cannot read configuration: " + e.what());
     }
-    static const std::set<std::string> known = {"camera_calibration", "T_base_cam", "frontend", "backend",
-                                                "baseline", "mapping", "simulator"};
+    static const std::set<std::string> known = {"camera_calibration", "T_base_cam", "frontend",
+                                                "backend", "baseline", "mapping"};
     for (const auto& kv : root)
       if (!known.count(kv.first.as<std::string>()))
         cfg.warnings.push_back(path + ": unknown top-level key '" + kv.first.as<std::string>() +
@@ -243,15 +320,17 @@ PipelineConfig loadPipelineConfig(const std::string& path,
             (slash == std::string::npos ? std::string(".") : path.substr(0, slash)) + "/" + calib;
       }
     }
-    cfg.T_base_cam = loadTBaseCam(path);
+    cfg.T_base_cam = loadTBaseCam(root, path, &cfg.warnings);
+    std::vector<std::string> warnings;
     try {
-      loadOptions(root, "frontend", &cfg.frontend, &cfg.warnings);
-      loadOptions(root, "backend", &cfg.backend, &cfg.warnings);
-      loadOptions(root, "mapping", &cfg.mapping, &cfg.global_map, &cfg.warnings);
-      loadOptions(root, "baseline", &cfg.baseline, &cfg.warnings);
+      loadOptions(root, "frontend", &cfg.frontend, &warnings);
+      loadOptions(root, "backend", &cfg.backend, &warnings);
+      loadOptions(root, "mapping", &cfg.mapping, &cfg.global_map, &warnings);
+      loadOptions(root, "baseline", &cfg.baseline, &warnings);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument(path + ": " + e.what());
     }
+    for (const std::string& w : warnings) cfg.warnings.push_back(path + ": " + w);
   }
   // The baseline drives at the front-end's speed so that both share one scale source.
   cfg.baseline.nominal_speed_mps = cfg.frontend.nominal_speed_mps;

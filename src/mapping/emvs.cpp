@@ -96,9 +96,9 @@ EmvsOptions::EmvsOptions() {
   volume.num_threads = 2;
 }
 
-void EmvsOptions::validate() const {
-  auto fail = [](const std::string& m) { throw std::invalid_argument("EmvsOptions: " + m); };
-  volume.validate();
+void EmvsOptions::validate(const std::string& section) const {
+  auto fail = [&](const std::string& m) { throw std::invalid_argument(section + "." + m); };
+  volume.validate(section + ".volume");
   if (adaptive_kernel_size < 3 || adaptive_kernel_size % 2 == 0 || adaptive_kernel_size > 101)
     fail("adaptive_kernel_size must be odd in [3, 101]");
   if (!(adaptive_sigma_px >= 0.0) || !std::isfinite(adaptive_sigma_px))
@@ -522,10 +522,10 @@ void EmvsMapper::reset() {
 // ---------------------------------------------------------------------------------------------
 // GlobalMap
 
-void GlobalMapOptions::validate() const {
+void GlobalMapOptions::validate(const std::string& section) const {
   if (!(voxel_size_m > 0.0) || !std::isfinite(voxel_size_m))
-    throw std::invalid_argument("GlobalMapOptions: voxel_size_m must be positive");
-  if (max_points == 0) throw std::invalid_argument("GlobalMapOptions: max_points must be positive");
+    throw std::invalid_argument(section + ".voxel_size_m must be positive");
+  if (max_points == 0) throw std::invalid_argument(section + ".max_points must be positive");
 }
 
 GlobalMap::GlobalMap(const GlobalMapOptions& options) : options_(options) {

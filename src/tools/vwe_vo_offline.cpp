@@ -18,6 +18,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
+#include <yaml-cpp/yaml.h>
 
 #include "vwe_vo/io/files.h"
 #include "vwe_vo/EventArray.h"
@@ -34,7 +35,8 @@ const char* kUsage =
     "                      [--start S] [--truth-arcs GT.tum [--truth-arcs-blend A]] [--no-follow-backend]\n"
     "  Runs the front-end and the back-end over recorded events at full speed (a bag from S seconds\n"
     "  after its start with --start, as a live system that starts late). Writes\n"
-    "  OUTDIR/frontend.tum, OUTDIR/arcs.csv, OUTDIR/report.json and (unless --frontend-only)\n"
+    "  OUTDIR/frontend.tum, OUTDIR/arcs.csv, OUTDIR/report.json, OUTDIR/options.yaml (the options\n"
+    "  in use, every key) and (unless --frontend-only)\n"
     "  OUTDIR/backend.tum, OUTDIR/odom.tum (the continuous odometry backend_node would publish\n"
     "  live) and OUTDIR/spline.json. Then (unless --no-map) a second pass over the\n"
     "  events maps them (EMVS) on the back-end's trajectory (the front-end's with --frontend-only)\n"
@@ -310,6 +312,13 @@ int main(int argc, char** argv) {
     const double wall =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
     pipeline.writeOutputs(args["--out"], {{"input", input}, {"wall_s", wall}});
+    {
+      const std::string options_path = args["--out"] + "/options.yaml";
+      std::ofstream options_file(options_path);
+      options_file << "# The options in use (" << (cfg.path.empty() ? "defaults" : cfg.path) << " and the command line)\n"
+                   << YAML::Dump(vwe_vo::optionsToYaml(cfg)) << "\n";
+      if (!options_file) throw std::runtime_error(options_path + ": cannot write");
+    }
     const nlohmann::json r = pipeline.report();
     std::fprintf(stderr,
                  "[vwe_vo_offline] %zu events, %zu windows over %.1f s in %.2f s (real-time factor "

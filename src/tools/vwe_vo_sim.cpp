@@ -146,9 +146,9 @@ int run(const Args& args) {
   std::string calib_path = args.calib;
   Pose3 T_base_cam = spec.T_base_cam;
   if (!args.config.empty()) {
-    T_base_cam = loadTBaseCam(args.config);
+    const YAML::Node root = YAML::LoadFile(args.config);
+    T_base_cam = loadTBaseCam(root, args.config);  // throws on unknown keys under T_base_cam
     if (calib_path.empty()) {
-      const YAML::Node root = YAML::LoadFile(args.config);
       if (root["camera_calibration"]) {
         calib_path = root["camera_calibration"].as<std::string>();
         if (!calib_path.empty() && calib_path[0] != '/') {

@@ -26,8 +26,8 @@ const char* contrastName(Contrast contrast) {
   return contrast == Contrast::kVariance ? "variance" : "density_per_vote";
 }
 
-void VolumeOptions::validate() const {
-  auto fail = [](const std::string& m) { throw std::invalid_argument("VolumeOptions: " + m); };
+void VolumeOptions::validate(const std::string& section) const {
+  auto fail = [&](const std::string& m) { throw std::invalid_argument(section + "." + m); };
   if (!(grid_scale > 0.05 && grid_scale <= 2.0)) fail("grid_scale must be in (0.05, 2]");
   if (margin_px < 0 || margin_px > 200) fail("margin_px must be in [0, 200]");
   if (num_planes < 2 || num_planes > 512) fail("num_planes must be in [2, 512]");

@@ -1,11 +1,12 @@
 #include "vwe_vo/vwe/vwe_image.h"
+#include "vwe_vo/common/validated.h"
 
 #include <algorithm>
 
 namespace vwe_vo {
 
 VweImageRenderer::VweImageRenderer(const CameraModel& camera, const VolumeOptions& options)
-    : volume_((options.validate(), options), camera.width(), camera.height(),
+    : volume_(validated(options), camera.width(), camera.height(),
               camera.calibration().fx, camera.calibration().fy, camera.calibration().cx,
               camera.calibration().cy),
       objective_(camera, &volume_) {}

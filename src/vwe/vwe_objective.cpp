@@ -1,4 +1,5 @@
 #include "vwe_vo/vwe/vwe_objective.h"
+#include "vwe_vo/common/validated.h"
 
 #include <algorithm>
 #include <cmath>
@@ -188,7 +189,7 @@ VweEvaluation VweObjective::evaluate(const EventVector& events, const Trajectory
 }
 
 VweObjectivePool::VweObjectivePool(const CameraModel& camera, const VolumeOptions& options)
-    : pool_((options.validate(), options.num_threads)) {
+    : pool_(validated(options).num_threads) {
   VolumeOptions single = options;
   single.num_threads = 1;
   const CameraCalibration& c = camera.calibration();

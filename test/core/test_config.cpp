@@ -29,3 +29,23 @@ TEST(Config, MalformedExtrinsicsNameFileAndKey) {
     EXPECT_NE(std::string(e.what()).find("translation"), std::string::npos);
   }
 }
+
+TEST(Config, UnknownOrConflictingMountKeysAreRefusedNamingTheKey) {
+  const std::string path = ::testing::TempDir() + "typo_extrinsics.yaml";
+  std::ofstream(path) << "T_base_cam:\n  translation: [0.1, 0.0, 0.3]\n  rpy: [0.0, 10.0, 0.0]\n";
+  try {
+    loadTBaseCam(path);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("T_base_cam.rpy"), std::string::npos) << e.what();
+  }
+  std::vector<std::string> warnings;
+  EXPECT_TRUE(loadTBaseCam(path, &warnings).isApprox(defaultTBaseCam()));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("T_base_cam.rpy"), std::string::npos) << warnings[0];
+
+  const std::string both = ::testing::TempDir() + "both_extrinsics.yaml";
+  std::ofstream(both) << "T_base_cam:\n  translation: [0.1, 0.0, 0.3]\n  rpy_deg: [0, 0, 0]\n"
+                         "  quaternion_xyzw: [0, 0, 0, 1]\n";
+  EXPECT_THROW(loadTBaseCam(both), std::runtime_error);
+}

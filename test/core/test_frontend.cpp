@@ -128,7 +128,9 @@ TEST(Frontend, OdometryAtRestMeansStandstill) {
   Frontend fe(options(), camera(), defaultTBaseCam());
   for (double t = 4.0; t < 6.0; t += 0.02) fe.addOdometry(secToNs(t), 0.0, 0.0);
   fe.addEvents(events);
-  for (const ArcEstimate& a : fe.process()) EXPECT_EQ(a.status, ArcStatus::kStandstill);
+  const std::vector<ArcEstimate> arcs = fe.process();
+  ASSERT_FALSE(arcs.empty());
+  for (const ArcEstimate& a : arcs) EXPECT_EQ(a.status, ArcStatus::kStandstill);
 }
 
 TEST(Frontend, BadInputIsCountedAndLoopedDataResets) {

@@ -1,9 +1,12 @@
-// Every YAML file shipped in config/ loads, and the loader reports what it cannot use.
+// Every YAML file shipped in config/ loads, config/vwe_vo.yaml holds every key with the structs'
+// defaults, and the loader reports what it cannot use and names bad values by their full key.
 #include <dirent.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
 #include <fstream>
+#include <set>
 
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/sim/sequences.h"
@@ -15,6 +18,49 @@ std::string writeTemp(const std::string& name, const std::string& text) {
   const std::string path = ::testing::TempDir() + name;
   std::ofstream(path) << text;
   return path;
+}
+
+bool isNumber(const YAML::Node& n, double* x) {
+  try {
+    *x = n.as<double>();
+    return true;
+  } catch (const YAML::Exception&) {
+    return false;
+  }
+}
+
+/// Expects the maps `expected` (the emitted defaults) and `file` to hold the same keys, and the
+/// same values: numbers within a relative 1e-12, anything else as equal text.
+void expectSameKeysAndValues(const YAML::Node& expected, const YAML::Node& file,
+                             const std::string& path) {
+  ASSERT_TRUE(expected.IsMap()) << path;
+  ASSERT_TRUE(file.IsMap()) << path << " must be a map in the file";
+  std::set<std::string> file_keys;
+  for (const auto& kv : file) file_keys.insert(kv.first.as<std::string>());
+  for (const auto& kv : expected) {
+    const std::string key = kv.first.as<std::string>();
+    const std::string full = path.empty() ? key : path + "." + key;
+    if (!file_keys.erase(key)) {
+      ADD_FAILURE() << "vwe_vo.yaml lacks the key " << full;
+      continue;
+    }
+    const YAML::Node e = kv.second;
+    const YAML::Node v = file[key];
+    if (e.IsMap()) {
+      expectSameKeysAndValues(e, v, full);
+      continue;
+    }
+    ASSERT_TRUE(e.IsScalar() && v.IsScalar()) << full;
+    double a = 0, b = 0;
+    if (isNumber(e, &a) && isNumber(v, &b))
+      EXPECT_LE(std::abs(a - b), 1e-12 * std::max(std::abs(a), std::abs(b)))
+          << full << ": struct default " << e.as<std::string>() << ", vwe_vo.yaml " << v.as<std::string>();
+    else
+      EXPECT_EQ(e.as<std::string>(), v.as<std::string>()) << full;
+  }
+  for (const std::string& key : file_keys)
+    ADD_FAILURE() << "vwe_vo.yaml has the key " << (path.empty() ? key : path + "." + key)
+                  << " that the loader does not know";
 }
 }  // namespace
 
@@ -40,6 +86,42 @@ TEST(OptionsYaml, EveryShippedConfigLoads) {
   }
   closedir(d);
   EXPECT_GE(pipeline_configs, 2);
+}
+
+// config/vwe_vo.yaml is the structs' defaults, written out: every key the loader knows, no other,
+// and the same values (the emitter writes what the loader reads, key by key).
+TEST(OptionsYaml, ShippedDefaultsFileHoldsEveryKeyWithTheStructDefaults) {
+  const std::string path = std::string(VWE_VO_SOURCE_DIR) + "/config/vwe_vo.yaml";
+  PipelineConfig defaults;
+  defaults.T_base_cam = defaultTBaseCam();
+  YAML::Node expected = optionsToYaml(defaults);
+  YAML::Node file = YAML::Clone(YAML::LoadFile(path));
+  // The file gives the mount as rpy_deg, the emitter as a quaternion: compare the poses; the
+  // calibration is the default one.
+  const PipelineConfig loaded = loadPipelineConfig(path);
+  EXPECT_TRUE(loaded.T_base_cam.isApprox(defaultTBaseCam(), 1e-12));
+  EXPECT_EQ(file["camera_calibration"].as<std::string>(), "davis346.yaml");
+  ASSERT_TRUE(expected.remove("T_base_cam"));
+  ASSERT_TRUE(file.remove("T_base_cam"));
+  ASSERT_TRUE(file.remove("camera_calibration"));
+  expectSameKeysAndValues(expected, file, "");
+  // And through the loader: the options it reads from the file are the defaults exactly.
+  PipelineConfig from_file = loaded;
+  from_file.T_base_cam = defaults.T_base_cam;
+  EXPECT_EQ(YAML::Dump(optionsToYaml(from_file)), YAML::Dump(optionsToYaml(defaults)));
+}
+
+// What optionsToYaml writes loads again, with no warnings, to the same options.
+TEST(OptionsYaml, EmittedOptionsLoadBackUnchanged) {
+  const std::string dir = std::string(VWE_VO_SOURCE_DIR) + "/config/";
+  const PipelineConfig car = loadPipelineConfig(dir + "car.yaml");
+  YAML::Node emitted = optionsToYaml(car);
+  emitted["camera_calibration"] = dir + "davis346.yaml";
+  const PipelineConfig again = loadPipelineConfig(writeTemp("cfg_emitted.yaml", YAML::Dump(emitted)));
+  EXPECT_TRUE(again.warnings.empty()) << again.warnings[0];
+  EXPECT_TRUE(again.T_base_cam.isApprox(car.T_base_cam, 1e-12));
+  EXPECT_EQ(YAML::Dump(optionsToYaml(again)), YAML::Dump(optionsToYaml(car)));
+  EXPECT_EQ(again.backend.volume.z_min_m, 6.0);  // the car's, not the default
 }
 
 // The shipped configurations carry the mounts the simulator records with: the turtlebot one
@@ -72,14 +154,62 @@ TEST(OptionsYaml, UnknownKeysAreReportedAndBadValuesRefused) {
       "cfg_typo.yaml", "camera_calibration: " + cal + "\nfrontend:\n  windw_duration_s: 0.5\n"));
   ASSERT_EQ(cfg.warnings.size(), 1u);
   EXPECT_NE(cfg.warnings[0].find("frontend.windw_duration_s"), std::string::npos);
+  EXPECT_NE(cfg.warnings[0].find("cfg_typo.yaml"), std::string::npos);
   try {
     loadPipelineConfig(writeTemp(
         "cfg_bad.yaml", "camera_calibration: " + cal + "\nfrontend:\n  window_duration_s: -1\n"));
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("window_duration_s"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("frontend.window_duration_s"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("cfg_bad.yaml"), std::string::npos) << e.what();
   }
+}
+
+// A bad value in one of the three volume sections is named by its full key.
+TEST(OptionsYaml, NestedErrorsNameTheFullKey) {
+  const std::string cal = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"backend:\n  volume: {z_min_m: -1}\n", "backend.volume.z_min_m"},
+      {"frontend:\n  volume: {num_planes: 1}\n", "frontend.volume.num_planes"},
+      {"mapping:\n  volume: {z_max_m: 0.1}\n", "mapping.volume.z_max_m"},
+      {"mapping:\n  global_map: {voxel_size_m: 0}\n", "mapping.global_map.voxel_size_m"},
+      {"frontend:\n  one_sided_balance: 2\n", "frontend.one_sided_balance"},
+      {"baseline:\n  klt_window_px: 4\n", "baseline.klt_window_px"},
+      {"backend:\n  volume: {margin_px: x}\n", "backend.volume.margin_px"},
+  };
+  for (const auto& c : cases) {
+    try {
+      loadPipelineConfig(writeTemp("cfg_nested_bad.yaml", "camera_calibration: " + cal + "\n" + c.first));
+      ADD_FAILURE() << c.first << " was accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(c.second), std::string::npos) << e.what();
+    }
+  }
+  // The same names when a struct is validated outside the loader.
+  BackendOptions b;
+  b.volume.z_min_m = -1;
+  try {
+    b.validate();
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("backend.volume.z_min_m"), std::string::npos) << e.what();
+  }
+}
+
+// Unknown keys are reported in every section, the mount and the DSI's volume included (the DSI
+// has no contrast), and every FrameBaselineOptions field is read.
+TEST(OptionsYaml, UnknownKeysAreReportedEverywhere) {
+  const std::string cal = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
+  const PipelineConfig cfg = loadPipelineConfig(writeTemp(
+      "cfg_unknown.yaml", "camera_calibration: " + cal +
+                              "\nT_base_cam:\n  translation: [0.1, 0.0, 0.3]\n  rpy: [0.0, 10.0, 0.0]\n"
+                              "mapping:\n  volume: {contrast: variance}\nsimulator: {seed: 3}\n"
+                              "baseline: {seed: 7}\n"));
+  ASSERT_EQ(cfg.warnings.size(), 3u);
+  EXPECT_NE(cfg.warnings[0].find("'simulator'"), std::string::npos) << cfg.warnings[0];
+  EXPECT_NE(cfg.warnings[1].find("T_base_cam.rpy"), std::string::npos) << cfg.warnings[1];
+  EXPECT_NE(cfg.warnings[2].find("mapping.volume.contrast"), std::string::npos) << cfg.warnings[2];
+  EXPECT_EQ(cfg.baseline.seed, 7u);
 }
 
 TEST(OptionsYaml, VolumeContrastIsReadAndUnknownMeasuresRefused) {
@@ -93,7 +223,7 @@ TEST(OptionsYaml, VolumeContrastIsReadAndUnknownMeasuresRefused) {
                                  "camera_calibration: " + cal + "\nfrontend:\n  volume: {contrast: varaince}\n"));
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("volume.contrast: 'varaince'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("frontend.volume.contrast: 'varaince'"), std::string::npos) << e.what();
   }
 }
 
@@ -118,6 +248,6 @@ TEST(OptionsYaml, MappingSection) {
         "cfg_map_bad.yaml", "camera_calibration: " + cal + "\nmapping:\n  nms_radius_px: -1\n"));
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("nms_radius_px"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("mapping.nms_radius_px"), std::string::npos) << e.what();
   }
 }

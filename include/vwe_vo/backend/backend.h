@@ -24,10 +24,16 @@
 namespace vwe_vo {
 
 struct BackendOptions {
-  VolumeOptions volume;                  // the VWE grid of every back-end volume
+  VolumeOptions volume = defaultVolume();  // the VWE grid of every back-end volume
+  static VolumeOptions defaultVolume() {
+    VolumeOptions v;
+    v.grid_scale = 1.0;  // full resolution: at half resolution the refinement made the rotation worse
+    v.z_min_m = 0.8;     // as the front-end: nearer planes collect floor rays at wrong yaw rates
+    return v;
+  }
   int degree = 3;                        // spline degree p (1..5)
   double knot_spacing_s = 0.2;           // uniform knot span [s]
-  double tau1_s = 0.25;                  // spacing of the volume reference times [s]
+  double tau1_s = 0.2;                   // spacing of the volume reference times [s]
   double tau2_s = 1.0;                   // events span of one volume [s], > tau1_s (parallax over 1 s is what beats the front-end's 0.3 s)
   double window_s = 1.6;                 // length of the optimised sliding window [s]
   double update_interval_s = 1.0;        // new arcs that trigger a refinement [s]
@@ -35,7 +41,7 @@ struct BackendOptions {
   size_t min_events_per_volume = 300;    // fewer events: the volume is skipped [events]
   int max_iterations = 20;               // LBFGS iterations per refinement
   double function_tolerance = 1e-5;      // LBFGS stops when the relative cost change is below this [1]
-  int max_line_search_steps = 20;        // evaluations a line search may take (Ceres' default 20)
+  int max_line_search_steps = 4;         // evaluations a line search may take (Ceres' default is 20)
   double step_scale_per_span = 0.25;     // solver unit of a control-point coordinate, as a fraction of the distance driven per knot span (at least 1 mm) [1]
   double init_sample_interval_s = 0.05;  // spacing of the dead-reckoned poses fitted [s]
   double smoothness_weight = 0.05;       // second-difference prior of the initial fit [1]
@@ -46,7 +52,8 @@ struct BackendOptions {
   double max_backwards_jump_s = 0.05;    // arcs older than newest - this reset the back-end [s]
   double output_rate_hz = 20.0;          // rate of the sampled trajectory (backend.tum) [Hz]
   uint64_t seed = 1;                     // subsampling seed
-  void validate() const;                 // throws std::invalid_argument naming the field
+  /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
+  void validate(const std::string& section = "backend") const;
 };
 
 struct BackendStats {

@@ -56,8 +56,8 @@ struct FrameBaselineOptions {
   double min_median_flow_px = 0.02;  // median track motion below this while moving: LOST [px]
   double max_frame_gap_s = 0.5;      // a longer gap between frames restarts tracking [s]
   uint64_t seed = 1;                 // RANSAC sampling seed [-]
-  /// Throws std::invalid_argument naming the first bad field.
-  void validate() const;
+  /// Throws std::invalid_argument naming the first bad field by its YAML key, section + "." + key.
+  void validate(const std::string& section = "baseline") const;
 };
 
 enum class FrameStatus { kOk = 0, kStandstill = 1, kLost = 2, kFirst = 3 };

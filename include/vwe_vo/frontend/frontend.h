@@ -66,7 +66,8 @@ struct FrontendOptions {
   // yaw rate, the gyro's if /dvs/imu is given, else the previous arc's.
   OneSidedOptions one_sided;
   uint64_t seed = 1;                       // subsampling seed
-  void validate() const;                   // throws std::invalid_argument naming the field
+  /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
+  void validate(const std::string& section = "frontend") const;
 };
 
 /// One front-end window's result (mirrors vwe_vo/AckermannArc).

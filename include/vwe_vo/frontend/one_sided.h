@@ -21,8 +21,9 @@ struct OneSidedOptions {
   double balance = 0.0;      // events above the horizon this unbalanced (fewer / more) are one-sided; 0: off [1], in [0, 1)
   double z_min_m = 10.0;     // nearest plane of the deeper planes [m], in (normal z_min, z_max)
   double min_depth_m = 11.0; // that side's structure must measure this deep for them [m], > 0
-  /// Throws std::invalid_argument naming owner + the field; `normal` is the normal planes.
-  void validate(const VolumeOptions& normal, const std::string& owner) const;
+  /// Throws std::invalid_argument naming the field by its key, section + ".one_sided_" + field;
+  /// `normal` is the normal planes.
+  void validate(const VolumeOptions& normal, const std::string& section) const;
 };
 
 /// Pixel (undistorted pinhole) where the direction straight ahead of base_link (its x axis)

@@ -3,8 +3,13 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "vwe_vo/common/math.h"
+
+namespace YAML {
+class Node;
+}
 
 namespace vwe_vo {
 
@@ -16,8 +21,13 @@ Pose3 defaultTBaseCam();
 /// camera *body* frame x-forward/z-up relative to base_link, composed with the optical-frame
 /// convention) or `T_base_cam: {translation: [...], quaternion_xyzw: [...]}` (the optical frame
 /// directly) from a YAML file. Falls back to defaultTBaseCam() if the key is absent.
-/// Throws std::runtime_error naming the file and key on malformed values.
-Pose3 loadTBaseCam(const std::string& yaml_path);
+/// Throws std::runtime_error naming the file and key on malformed values, when both rpy_deg and
+/// quaternion_xyzw are given, and on unknown keys under T_base_cam if warnings is null (else
+/// they are added to *warnings as "unknown key 'T_base_cam.<key>' ignored").
+Pose3 loadTBaseCam(const std::string& yaml_path, std::vector<std::string>* warnings = nullptr);
+/// The same from the file's parsed root; yaml_path only names the file in messages.
+Pose3 loadTBaseCam(const YAML::Node& root, const std::string& yaml_path,
+                   std::vector<std::string>* warnings = nullptr);
 
 /// T_base_cam from a mount given as translation and roll/pitch/yaw [rad] of the camera body.
 Pose3 mountToTBaseCam(const Vec3& translation, double roll, double pitch, double yaw);

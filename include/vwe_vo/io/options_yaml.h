@@ -1,6 +1,7 @@
-// Fills the core options structs from the package's YAML configuration (config/vwe_vo.yaml).
-// Keys absent from the file keep the struct's defaults; unknown keys are reported so that a
-// typo is not silently ignored; every struct is validated after loading.
+// Fills the core options structs from the package's YAML configuration (config/vwe_vo.yaml),
+// and writes them back under the same keys. Keys absent from the file keep the struct's
+// defaults; unknown keys are reported so that a typo is not silently ignored; every struct is
+// validated after loading, and errors name the full key (e.g. backend.volume.z_min_m).
 #pragma once
 
 #include <string>
@@ -19,13 +20,10 @@ class Node;
 
 namespace vwe_vo {
 
-void loadOptions(const YAML::Node& node, const std::string& section, VolumeOptions* options,
-                 std::vector<std::string>* warnings);
+/// Each reads the map node[section]; warnings get "unknown key '<section>.<key>' ignored".
 void loadOptions(const YAML::Node& node, const std::string& section, FrontendOptions* options,
                  std::vector<std::string>* warnings);
 void loadOptions(const YAML::Node& node, const std::string& section, BackendOptions* options,
-                 std::vector<std::string>* warnings);
-void loadOptions(const YAML::Node& node, const std::string& section, GlobalMapOptions* options,
                  std::vector<std::string>* warnings);
 /// The mapping: section (EmvsOptions with nested volume: and global_map:).
 void loadOptions(const YAML::Node& node, const std::string& section, EmvsOptions* options,
@@ -55,6 +53,11 @@ struct PipelineConfig {
 /// calibration from default_calibration_path.
 PipelineConfig loadPipelineConfig(const std::string& path,
                                   const std::string& default_calibration_path = "");
+
+/// Every option of cfg under its key, as loadPipelineConfig reads them: T_base_cam (translation
+/// and quaternion_xyzw), frontend, backend, mapping (with global_map) and baseline. The values
+/// in use, for logging; loading it again gives the same options.
+YAML::Node optionsToYaml(const PipelineConfig& cfg);
 
 
 }  // namespace vwe_vo

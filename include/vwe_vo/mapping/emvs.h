@@ -54,7 +54,8 @@ struct EmvsOptions {
       8000000;            // events waiting for the trajectory; the oldest are dropped beyond
   double max_event_rate_hz = 0.0;  // vote at most this many events per second (evenly over time,
                                    // the others counted as thinned); 0 = all
-  void validate() const;  // throws std::invalid_argument naming the field
+  /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
+  void validate(const std::string& section = "mapping") const;
 };
 
 /// One point of a cloud: position and confidence (the DSI maximum, in votes).
@@ -185,7 +186,8 @@ class EmvsMapper {
 struct GlobalMapOptions {
   double voxel_size_m = 0.05;  // voxel edge of the downsampled cloud [m]
   size_t max_points = 500000;  // voxels kept; beyond, the oldest, then least-supported, are dropped
-  void validate() const;       // throws std::invalid_argument naming the field
+  /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
+  void validate(const std::string& section = "mapping.global_map") const;
 };
 
 /// Keyframe clouds fused into one voxel-downsampled cloud in odom (centroid per voxel). Memory is

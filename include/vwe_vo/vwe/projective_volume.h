@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "vwe_vo/common/math.h"
@@ -39,7 +40,8 @@ struct VolumeOptions {
   // 0.5 ms moves the camera 3 mm at 6 m/s and turns it 0.5 mrad at 1 rad/s (0.1 px), and saves
   // most of the per-event B-spline work.
   double pose_slice_s = 0.0005;
-  void validate() const;     // throws std::invalid_argument naming the field
+  /// Throws std::invalid_argument naming the field by its key, section + "." + field.
+  void validate(const std::string& section = "volume") const;
 };
 
 /// A ray in the reference camera frame as the voting kernel needs it: its pixel in the virtual
