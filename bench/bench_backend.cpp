@@ -59,7 +59,8 @@ void BM_MultiVolumeObjective(benchmark::State& state) {
     x[0] = x0 + 1e-12 * double(++k);
     benchmark::DoNotOptimize(objective.evaluate(x, with_gradient ? &g : nullptr));
   }
-  if (objective.evaluations() < size_t(state.iterations())) state.SkipWithError("evaluations were served from kept results");
+  if (objective.evaluations() < size_t(state.iterations()))
+    state.SkipWithError("evaluations were served from kept results");
   state.counters["evals_per_s"] =
       benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
   state.counters["events_per_s"] = benchmark::Counter(

@@ -6,17 +6,18 @@
 #include <limits>
 
 #include "../test/common/synthetic_events.h"
-#include "vwe_vo/trajectory/ackermann_arc.h"
-#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/io/config.h"
 #include "vwe_vo/mapping/emvs.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/vwe/vwe_objective.h"
 
 using namespace vwe_vo;
 
 namespace {
 const CameraModel& camera() {
-  static const CameraModel cam(loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+  static const CameraModel cam(
+      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
   return cam;
 }
 
@@ -27,7 +28,8 @@ const AckermannArcModel& truth() {
 
 /// 2 M events of 3000 random points over 1 s (2 M distinct events, not a repeated packet).
 const EventVector& events() {
-  static const EventVector ev = synthetic::randomPointEvents(camera(), truth(), 2000000, 5, 0.5, 3000);
+  static const EventVector ev =
+      synthetic::randomPointEvents(camera(), truth(), 2000000, 5, 0.5, 3000);
   return ev;
 }
 
@@ -62,12 +64,18 @@ void BM_EmvsDsi(benchmark::State& state) {
     voted += kf.counts.voted;
     state.ResumeTiming();
   }
-  state.counters["s_per_dsi"] = benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate |
-                                                                                   benchmark::Counter::kInvert);
+  state.counters["s_per_dsi"] = benchmark::Counter(
+      double(state.iterations()), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
   state.counters["events_per_s"] = benchmark::Counter(double(voted), benchmark::Counter::kIsRate);
   state.counters["votes_per_s"] = benchmark::Counter(double(votes), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_EmvsDsi)->ArgNames({"threads"})->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+BENCHMARK(BM_EmvsDsi)
+    ->ArgNames({"threads"})
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(3);
 
 /// Depth map + cloud of a full 2 M x 100 DSI (argmax, refinement, thresholds, median, outliers).
 void BM_EmvsDepthExtraction(benchmark::State& state) {

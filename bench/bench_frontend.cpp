@@ -20,10 +20,11 @@ struct Data {
 const Data& data() {
   static const Data d = [] {
     const sim::SequenceSpec spec = sim::findSequence("indoor_circle");
-    CameraModel camera(loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+    CameraModel camera(
+        loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
     const auto trajectory = sim::VehicleTrajectory::fromProfile(spec.profile, spec.trajectory);
-    sim::EventSimulator simulator(sim::buildScene(spec.scene, spec.seed, trajectory), camera, spec.T_base_cam,
-                                  trajectory, spec.simulator);
+    sim::EventSimulator simulator(sim::buildScene(spec.scene, spec.seed, trajectory), camera,
+                                  spec.T_base_cam, trajectory, spec.simulator);
     EventVector events;
     simulator.simulateUntil(secToNs(3.0), &events);
     return Data{camera, spec.T_base_cam, std::move(events), 3.0};
@@ -40,16 +41,26 @@ void BM_FrontendIndoorCircle(benchmark::State& state) {
   for (auto _ : state) {
     Frontend frontend(options, d.camera, d.T_base_cam);
     for (size_t i = 0; i < d.events.size(); i += 50000) {
-      frontend.addEvents(EventVector(d.events.begin() + i, d.events.begin() + std::min(d.events.size(), i + 50000)));
+      frontend.addEvents(EventVector(d.events.begin() + i,
+                                     d.events.begin() + std::min(d.events.size(), i + 50000)));
       windows += frontend.process().size();
     }
   }
   state.counters["real_time_factor"] =
-      benchmark::Counter(double(state.iterations()) * d.duration_s, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
-  state.counters["windows_per_s"] = benchmark::Counter(double(windows), benchmark::Counter::kIsRate);
-  state.counters["events_per_s"] = benchmark::Counter(double(d.events.size()) * state.iterations(), benchmark::Counter::kIsRate);
+      benchmark::Counter(double(state.iterations()) * d.duration_s,
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["windows_per_s"] =
+      benchmark::Counter(double(windows), benchmark::Counter::kIsRate);
+  state.counters["events_per_s"] =
+      benchmark::Counter(double(d.events.size()) * state.iterations(), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_FrontendIndoorCircle)->ArgName("threads")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+BENCHMARK(BM_FrontendIndoorCircle)
+    ->ArgName("threads")
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(3);
 
 }  // namespace
 

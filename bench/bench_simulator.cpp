@@ -5,8 +5,8 @@
 #include <cmath>
 #include <string>
 
-#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/io/config.h"
+#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sim/sequences.h"
 
 namespace {
@@ -15,7 +15,8 @@ using namespace vwe_vo;
 
 void simulate(benchmark::State& state, const std::string& name, double seconds, int threads) {
   const sim::SequenceSpec spec = sim::findSequence(name);
-  const CameraModel camera(loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+  const CameraModel camera(
+      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
   const auto trajectory = sim::VehicleTrajectory::fromProfile(spec.profile, spec.trajectory);
   const sim::Scene scene = sim::buildScene(spec.scene, spec.seed, trajectory);
   sim::EventSimulatorOptions options = spec.simulator;
@@ -45,15 +46,26 @@ void simulate(benchmark::State& state, const std::string& name, double seconds, 
   state.counters["real_time_factor"] = wall / sim_s;
 }
 
-void BM_IndoorCircle2s(benchmark::State& state) { simulate(state, "indoor_circle", 2.0, static_cast<int>(state.range(0))); }
-BENCHMARK(BM_IndoorCircle2s)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
+void BM_IndoorCircle2s(benchmark::State& state) {
+  simulate(state, "indoor_circle", 2.0, static_cast<int>(state.range(0)));
+}
+BENCHMARK(BM_IndoorCircle2s)
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->UseRealTime();
 
 // The target: a 20 s indoor sequence (straights, 30 and 45 deg/s turns, stop-and-go,
 // a 3 s standstill) at least 3x faster than real time on 2 threads (real_time_factor <= 0.33).
-void BM_IndoorLong20s(benchmark::State& state) { simulate(state, "indoor_long", 20.0, 2); }
+void BM_IndoorLong20s(benchmark::State& state) {
+  simulate(state, "indoor_long", 20.0, 2);
+}
 BENCHMARK(BM_IndoorLong20s)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
 
-void BM_StreetLong2s(benchmark::State& state) { simulate(state, "street_long", 2.0, 2); }
+void BM_StreetLong2s(benchmark::State& state) {
+  simulate(state, "street_long", 2.0, 2);
+}
 BENCHMARK(BM_StreetLong2s)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
 
 }  // namespace

@@ -1,19 +1,20 @@
 // Throughput of the VWE: objective (+ gradient) evaluations per second and plane-votes per
-// second for a 30k-event volume and the pipeline's window and volume sizes, on 1 and 2 threads; and the DSI-sized voting workload of the
-// mapper (2 M events x 100 planes at full 346x260 resolution).
+// second for a 30k-event volume and the pipeline's window and volume sizes, on 1 and 2 threads; and
+// the DSI-sized voting workload of the mapper (2 M events x 100 planes at full 346x260 resolution).
 #include <benchmark/benchmark.h>
 
 #include "../test/common/synthetic_events.h"
-#include "vwe_vo/trajectory/ackermann_arc.h"
-#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/io/config.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/vwe/vwe_objective.h"
 
 using namespace vwe_vo;
 
 namespace {
 const CameraModel& camera() {
-  static const CameraModel cam(loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+  static const CameraModel cam(
+      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
   return cam;
 }
 
@@ -29,7 +30,8 @@ void BM_VweObjective(benchmark::State& state) {
   ProjectiveVolume volume(vo, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
   VweObjective objective(camera(), &volume);
   const AckermannArcModel truth(0.4, 0.4, secToNs(10.0), defaultTBaseCam());
-  const EventVector events = synthetic::randomPointEvents(camera(), truth, num_events, 1, 0.15, 2000);
+  const EventVector events =
+      synthetic::randomPointEvents(camera(), truth, num_events, 1, 0.15, 2000);
   AckermannArcModel model(0.38, 0.4, secToNs(10.0), defaultTBaseCam());
   Eigen::VectorXd g;
   size_t votes = 0;
@@ -38,8 +40,10 @@ void BM_VweObjective(benchmark::State& state) {
     votes += e.votes;
     benchmark::DoNotOptimize(e.contrast);
   }
-  state.counters["evals_per_s"] = benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
-  state.counters["plane_votes_per_s"] = benchmark::Counter(double(votes), benchmark::Counter::kIsRate);
+  state.counters["evals_per_s"] =
+      benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["plane_votes_per_s"] =
+      benchmark::Counter(double(votes), benchmark::Counter::kIsRate);
   state.counters["plane_votes_per_s_per_thread"] =
       benchmark::Counter(double(votes) / threads, benchmark::Counter::kIsRate);
 }
@@ -75,8 +79,8 @@ void BM_VotingKernel(benchmark::State& state) {
     const PixelEvent& e = events[i % events.size()];
     const Pose3 T = truth.T_Cr_Ct(e.t_ns);
     VolumeRay r;
-    if (makeVolumeRay(T.translation(), T.linear() * camera().bearing(e.x, e.y).cast<double>(), volume.fx(),
-                      volume.fy(), volume.cx(), volume.cy(), &r))
+    if (makeVolumeRay(T.translation(), T.linear() * camera().bearing(e.x, e.y).cast<double>(),
+                      volume.fx(), volume.fy(), volume.cx(), volume.cy(), &r))
       rays.push_back(r);
   }
   size_t votes = 0;
@@ -85,8 +89,10 @@ void BM_VotingKernel(benchmark::State& state) {
     benchmark::DoNotOptimize(volume.sum());
     volume.clear(rays);
   }
-  state.counters["plane_votes_per_s"] = benchmark::Counter(double(votes), benchmark::Counter::kIsRate);
-  state.counters["plane_votes_per_s_per_thread"] = benchmark::Counter(double(votes) / threads, benchmark::Counter::kIsRate);
+  state.counters["plane_votes_per_s"] =
+      benchmark::Counter(double(votes), benchmark::Counter::kIsRate);
+  state.counters["plane_votes_per_s_per_thread"] =
+      benchmark::Counter(double(votes) / threads, benchmark::Counter::kIsRate);
   state.counters["events_per_s"] =
       benchmark::Counter(double(rays.size()) * state.iterations(), benchmark::Counter::kIsRate);
 }

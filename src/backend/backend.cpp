@@ -1,5 +1,4 @@
 #include "vwe_vo/backend/backend.h"
-#include "vwe_vo/common/validated.h"
 
 #include <ceres/gradient_problem.h>
 #include <ceres/gradient_problem_solver.h>
@@ -10,6 +9,8 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+
+#include "vwe_vo/common/validated.h"
 
 namespace vwe_vo {
 
@@ -28,8 +29,10 @@ void BackendOptions::validate(const std::string& section) const {
   if (min_events_per_volume > max_events_per_volume)
     fail("min_events_per_volume must be <= max_events_per_volume");
   if (max_iterations < 0) fail("max_iterations must be >= 0");
-  if (max_line_search_steps < 1 || max_line_search_steps > 100) fail("max_line_search_steps must be in [1, 100]");
-  if (!(function_tolerance > 0 && function_tolerance < 0.1)) fail("function_tolerance must be in (0, 0.1)");
+  if (max_line_search_steps < 1 || max_line_search_steps > 100)
+    fail("max_line_search_steps must be in [1, 100]");
+  if (!(function_tolerance > 0 && function_tolerance < 0.1))
+    fail("function_tolerance must be in (0, 0.1)");
   if (!(step_scale_per_span > 0 && step_scale_per_span <= 10))
     fail("step_scale_per_span must be in (0, 10]");
   if (!(init_sample_interval_s > 0 && init_sample_interval_s <= knot_spacing_s))
@@ -95,7 +98,8 @@ double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::Vect
       const BackendVolume& v = volumes_[size_t(i)];
       const BSplineCameraModel model(spline_, T_base_cam_, v.t_ref_ns);
       contrasts_[size_t(i)] =
-          objective.evaluate(v.events, model, gradient ? &full_gradients_[size_t(i)] : nullptr).contrast;
+          objective.evaluate(v.events, model, gradient ? &full_gradients_[size_t(i)] : nullptr)
+              .contrast;
     });
   }
   if (gradient) gradient->setZero(numFree());
@@ -325,10 +329,12 @@ bool Backend::addArc(const ArcEstimate& arc) {
     was_reset = true;
   }
   if (!dead_reckoning_)
-    dead_reckoning_ = std::make_unique<ArcDeadReckoning>(arc.t_start_ns, options_.interpolate_arc_rates);
+    dead_reckoning_ =
+        std::make_unique<ArcDeadReckoning>(arc.t_start_ns, options_.interpolate_arc_rates);
   if (newest_arc_ns_ >= 0 && arc.t_end_ns <= newest_arc_ns_) return was_reset;
   const bool still = arc.status == ArcStatus::kStandstill;
-  const bool measured = arc.status == ArcStatus::kOk && std::isfinite(arc.omega) && std::isfinite(arc.v);
+  const bool measured =
+      arc.status == ArcStatus::kOk && std::isfinite(arc.omega) && std::isfinite(arc.v);
   if (measured) {
     good_omega_ = arc.omega;
     good_v_ = arc.v;
@@ -366,7 +372,8 @@ bool Backend::process() {
 
 void Backend::finish() {
   if (!dead_reckoning_ || newest_arc_ns_ <= processed_ns_) return;
-  if (dtSec(newest_arc_ns_, dead_reckoning_->startTime()) < 2 * options_.init_sample_interval_s) return;
+  if (dtSec(newest_arc_ns_, dead_reckoning_->startTime()) < 2 * options_.init_sample_interval_s)
+    return;
   update(newest_arc_ns_);
 }
 
@@ -469,7 +476,8 @@ void Backend::refine(int64_t t_new_ns) {
   if (volumes.empty()) return;
   stats_.volumes += volumes.size();
 
-  MultiVolumeObjective objective(spline_, T_base_cam_, first_free, std::move(volumes), &objectives_);
+  MultiVolumeObjective objective(spline_, T_base_cam_, first_free, std::move(volumes),
+                                 &objectives_);
   const Eigen::VectorXd params0 = objective.freeParams();
   // With the gradient: the solver's first evaluation, at params0, is then already done.
   Eigen::VectorXd g0;
@@ -496,8 +504,8 @@ void Backend::refine(int64_t t_new_ns) {
   for (double u : u_prior) mean_speed += spline_->velocity(u).norm() / double(u_prior.size());
   const double step_m =
       std::max(1e-3, options_.step_scale_per_span * mean_speed * options_.knot_spacing_s);
-  auto* cost = new MultiVolumeCost(&objective, params0, step_m, f0, priors,
-                                   options_.deformation_weight);
+  auto* cost =
+      new MultiVolumeCost(&objective, params0, step_m, f0, priors, options_.deformation_weight);
   ceres::GradientProblem problem(cost);  // takes ownership
   ceres::GradientProblemSolver::Options so;
   so.line_search_direction_type = ceres::LBFGS;
@@ -528,10 +536,13 @@ void Backend::refine(int64_t t_new_ns) {
   }
 }
 
-int64_t Backend::oldestArcTime() const { return dead_reckoning_ ? dead_reckoning_->startTime() : -1; }
+int64_t Backend::oldestArcTime() const {
+  return dead_reckoning_ ? dead_reckoning_->startTime() : -1;
+}
 
 bool Backend::poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const {
-  if (!dead_reckoning_ || t_ns < dead_reckoning_->startTime() || t_ns > newest_arc_ns_) return false;
+  if (!dead_reckoning_ || t_ns < dead_reckoning_->startTime() || t_ns > newest_arc_ns_)
+    return false;
   constexpr int64_t kRateStep_ns = 20000000;  // central differences for the rates [ns]
   auto pose = [&](int64_t t) {
     if (spline_ && t <= processed_ns_) return spline_->T_odom_base(spline_->toSplineTime(t));
@@ -568,7 +579,8 @@ bool ContinuousOdometry::next(const Backend& backend, int64_t t_ns, Pose3* T_odo
   Pose3 T_best;
   if (!backend.poseAt(t_ns, &T_best, v, omega)) return false;
   Pose3 T_was;
-  if (has_previous_ && t_ns > t_previous_ns_ && backend.poseAt(t_previous_ns_, &T_was, nullptr, nullptr)) {
+  if (has_previous_ && t_ns > t_previous_ns_ &&
+      backend.poseAt(t_previous_ns_, &T_was, nullptr, nullptr)) {
     // The motion since the previous output as the back-end sees it now, on the output so far.
     *T_odom_base = Pose3(T_previous_ * (T_was.inverse() * T_best));
   } else {

@@ -17,9 +17,12 @@ std::string format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
 }  // namespace
 
 void BackendDriverOptions::validate() const {
-  auto fail = [](const std::string& m) { throw std::invalid_argument("BackendDriverOptions: " + m); };
+  auto fail = [](const std::string& m) {
+    throw std::invalid_argument("BackendDriverOptions: " + m);
+  };
   if (!(odom_rate_hz > 0 && odom_rate_hz <= 1000)) fail("odom_rate_hz must be in (0, 1000] [Hz]");
-  if (!(max_gap_s > 0) || !std::isfinite(max_gap_s)) fail("max_gap_s must be positive and finite [s]");
+  if (!(max_gap_s > 0) || !std::isfinite(max_gap_s))
+    fail("max_gap_s must be positive and finite [s]");
 }
 
 BackendDriver::BackendDriver(Backend* backend, const BackendDriverOptions& options,
@@ -48,9 +51,8 @@ void BackendDriver::addEvents(const EventVector& events) {
   if (newest_event_ns_ >= 0 && dtSec(first, newest_event_ns_) > options_.max_gap_s) {
     ++stats_.gaps;
     backend_->reset();
-    afterReset(ResetCause::kGap,
-               format("no events for %.3f s (> max_gap_s %.3f s)", dtSec(first, newest_event_ns_),
-                      options_.max_gap_s));
+    afterReset(ResetCause::kGap, format("no events for %.3f s (> max_gap_s %.3f s)",
+                                        dtSec(first, newest_event_ns_), options_.max_gap_s));
   }
   const int64_t newest_before = newest_event_ns_;
   backend_->addEvents(events);
@@ -77,7 +79,8 @@ void BackendDriver::addArc(const ArcEstimate& arc, int64_t newest_pending_arc_ns
     ++stats_.gaps;
     const double gap = dtSec(arc.t_start_ns, newest_arc_ns_);
     backend_->reset();
-    afterReset(ResetCause::kGap, format("no arcs for %.3f s (> max_gap_s %.3f s)", gap, options_.max_gap_s));
+    afterReset(ResetCause::kGap,
+               format("no arcs for %.3f s (> max_gap_s %.3f s)", gap, options_.max_gap_s));
   }
   if (arc.status == ArcStatus::kLost || arc.status == ArcStatus::kLowEvents ||
       !std::isfinite(arc.omega) || !std::isfinite(arc.v))
@@ -96,9 +99,11 @@ void BackendDriver::addArc(const ArcEstimate& arc, int64_t newest_pending_arc_ns
     if (callbacks_.odometry) callbacks_.odometry(t_ns, T, v, omega);
   });
   // A newer arc that would be due again is pending: one refinement covers both.
-  if (newest_pending_arc_ns >= 0 && dtSec(newest_pending_arc_ns, arc.t_end_ns) >= bo.update_interval_s)
+  if (newest_pending_arc_ns >= 0 &&
+      dtSec(newest_pending_arc_ns, arc.t_end_ns) >= bo.update_interval_s)
     return;
-  const int64_t from = backend_->hasSpline() ? backend_->processedUntil() : backend_->oldestArcTime();
+  const int64_t from =
+      backend_->hasSpline() ? backend_->processedUntil() : backend_->oldestArcTime();
   if (!backend_->process()) return;
   ++stats_.refinements;
   const double intervals = dtSec(backend_->processedUntil(), from) / bo.update_interval_s;
@@ -117,8 +122,9 @@ void BackendDriver::finish() {
 
 void FollowOptions::validate() const {
   if (!(min_speed_mps > 0) || !std::isfinite(min_speed_mps))
-    throw std::invalid_argument("FollowOptions: min_speed_mps must be positive and finite [m/s], got " +
-                                std::to_string(min_speed_mps));
+    throw std::invalid_argument(
+        "FollowOptions: min_speed_mps must be positive and finite [m/s], got " +
+        std::to_string(min_speed_mps));
 }
 
 FrontendFollower::FrontendFollower(const FollowOptions& options, bool speed_from_odometry)

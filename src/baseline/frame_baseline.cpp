@@ -5,11 +5,10 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
-#include <random>
-#include <stdexcept>
-
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
+#include <random>
+#include <stdexcept>
 
 namespace vwe_vo {
 
@@ -44,25 +43,32 @@ void FrameBaselineOptions::validate(const std::string& section) const {
   if (border_px < 0) fail("border_px must be >= 0 [px]");
   if (min_tracks < 2) fail("min_tracks must be >= 2");
   if (min_inliers < 2) fail("min_inliers must be >= 2");
-  if (!(min_inlier_fraction >= 0 && min_inlier_fraction <= 1)) fail("min_inlier_fraction must be in [0, 1]");
+  if (!(min_inlier_fraction >= 0 && min_inlier_fraction <= 1))
+    fail("min_inlier_fraction must be in [0, 1]");
   if (!(inlier_threshold_px > 0)) fail("inlier_threshold_px must be positive [px]");
   if (max_hypotheses < 1) fail("max_hypotheses must be >= 1");
   if (!(omega_max_rad_s > 0)) fail("omega_max_rad_s must be positive [rad/s]");
-  if (!(nominal_speed_mps >= 0 && std::isfinite(nominal_speed_mps))) fail("nominal_speed_mps must be >= 0 [m/s]");
+  if (!(nominal_speed_mps >= 0 && std::isfinite(nominal_speed_mps)))
+    fail("nominal_speed_mps must be >= 0 [m/s]");
   if (!(standstill_speed_mps >= 0)) fail("standstill_speed_mps must be >= 0 [m/s]");
   if (!(odom_max_age_s > 0)) fail("odom_max_age_s must be positive [s]");
   if (!(min_contrast_dn >= 0)) fail("min_contrast_dn must be >= 0 [DN]");
-  if (!(max_saturated_fraction > 0 && max_saturated_fraction <= 1)) fail("max_saturated_fraction must be in (0, 1]");
+  if (!(max_saturated_fraction > 0 && max_saturated_fraction <= 1))
+    fail("max_saturated_fraction must be in (0, 1]");
   if (!(min_median_flow_px >= 0)) fail("min_median_flow_px must be >= 0 [px]");
   if (!(max_frame_gap_s > 0)) fail("max_frame_gap_s must be positive [s]");
 }
 
 const char* toString(FrameStatus s) {
   switch (s) {
-    case FrameStatus::kOk: return "OK";
-    case FrameStatus::kStandstill: return "STANDSTILL";
-    case FrameStatus::kLost: return "LOST";
-    case FrameStatus::kFirst: return "FIRST";
+    case FrameStatus::kOk:
+      return "OK";
+    case FrameStatus::kStandstill:
+      return "STANDSTILL";
+    case FrameStatus::kLost:
+      return "LOST";
+    case FrameStatus::kFirst:
+      return "FIRST";
   }
   return "?";
 }
@@ -78,8 +84,8 @@ double theta1PointOnAxle(const Vec3& f_r, const Vec3& f_t, const Pose3& T_base_c
   return 2.0 * std::atan(num / den);
 }
 
-int solveTheta1Point(const Vec3& f_r, const Vec3& f_t, double s_m, const Pose3& T_base_cam, double theta_max,
-                     std::vector<double>* thetas) {
+int solveTheta1Point(const Vec3& f_r, const Vec3& f_t, double s_m, const Pose3& T_base_cam,
+                     double theta_max, std::vector<double>* thetas) {
   thetas->clear();
   auto e = [&](double th) { return epipolar(cameraMotion(th, s_m, T_base_cam), f_r, f_t); };
   // Bracket sign changes on a grid no coarser than kStep, then polish each by safeguarded Newton
@@ -97,10 +103,13 @@ int solveTheta1Point(const Vec3& f_r, const Vec3& f_t, double s_m, const Pose3& 
         const Pose3 T = cameraMotion(x, s_m, T_base_cam, &jac);
         const Vec3 Rf = T.linear() * f_t;
         const double ex = f_r.dot(T.translation().cross(Rf));
-        const double de = f_r.dot(jac.dp_domega.cross(Rf)) + f_r.dot(T.translation().cross(jac.dR_domega * f_t));
+        const double de =
+            f_r.dot(jac.dp_domega.cross(Rf)) + f_r.dot(T.translation().cross(jac.dR_domega * f_t));
         if (ex == 0.0) break;
-        if ((ex < 0) == (elo < 0)) lo = x, elo = ex;
-        else hi = x;
+        if ((ex < 0) == (elo < 0))
+          lo = x, elo = ex;
+        else
+          hi = x;
         double next = de != 0.0 ? x - ex / de : 0.5 * (lo + hi);
         if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
         const bool done = std::abs(next - x) < 1e-15 || hi - lo < 1e-14;
@@ -125,9 +134,10 @@ double sampsonDistance(const Pose3& T_Cr_Ct, const Vec3& f_r, const Vec3& f_t) {
   return std::abs(r) / std::sqrt(den);
 }
 
-ThetaRansacResult estimateThetaRansac(const std::vector<Vec3>& f_r, const std::vector<Vec3>& f_t, double s_m,
-                                      const Pose3& T_base_cam, double theta_max, double threshold_norm,
-                                      int max_hypotheses, int min_inliers, uint64_t seed) {
+ThetaRansacResult estimateThetaRansac(const std::vector<Vec3>& f_r, const std::vector<Vec3>& f_t,
+                                      double s_m, const Pose3& T_base_cam, double theta_max,
+                                      double threshold_norm, int max_hypotheses, int min_inliers,
+                                      uint64_t seed) {
   if (f_r.size() != f_t.size())
     throw std::invalid_argument("estimateThetaRansac: " + std::to_string(f_r.size()) + " vs " +
                                 std::to_string(f_t.size()) + " bearings");
@@ -235,7 +245,8 @@ ThetaRansacResult estimateThetaRansac(const std::vector<Vec3>& f_r, const std::v
 // ------------------------------------------------------------------------------------------------
 // FrameBaseline
 
-FrameBaseline::FrameBaseline(const FrameBaselineOptions& options, const CameraModel& camera, const Pose3& T_base_cam)
+FrameBaseline::FrameBaseline(const FrameBaselineOptions& options, const CameraModel& camera,
+                             const Pose3& T_base_cam)
     : options_(options), camera_(camera), T_base_cam_(T_base_cam), chain_(Pose3::Identity(), 0) {
   options_.validate();
   focal_px_ = 0.5 * (camera.calibration().fx + camera.calibration().fy);
@@ -244,7 +255,8 @@ FrameBaseline::FrameBaseline(const FrameBaselineOptions& options, const CameraMo
 void FrameBaseline::addOdometry(int64_t t_ns, double v_mps, double /*yaw_rate_rad_s*/) {
   if (!std::isfinite(v_mps)) return;
   odom_.emplace_back(t_ns, v_mps);
-  while (odom_.size() > 2 && odom_.front().first < t_ns - secToNs(10 * options_.odom_max_age_s)) odom_.pop_front();
+  while (odom_.size() > 2 && odom_.front().first < t_ns - secToNs(10 * options_.odom_max_age_s))
+    odom_.pop_front();
 }
 
 double FrameBaseline::speedAt(int64_t t_ns) const {
@@ -263,11 +275,13 @@ void FrameBaseline::detectFeatures(const cv::Mat& image) {
   if (want <= 0) return;
   cv::Mat mask(image.size(), CV_8U, cv::Scalar(0));
   const int b = options_.border_px;
-  if (image.cols > 2 * b && image.rows > 2 * b) mask(cv::Rect(b, b, image.cols - 2 * b, image.rows - 2 * b)).setTo(255);
+  if (image.cols > 2 * b && image.rows > 2 * b)
+    mask(cv::Rect(b, b, image.cols - 2 * b, image.rows - 2 * b)).setTo(255);
   for (const auto& p : prev_points_)
     cv::circle(mask, p, static_cast<int>(std::ceil(options_.min_distance_px)), cv::Scalar(0), -1);
   std::vector<cv::Point2f> fresh;
-  cv::goodFeaturesToTrack(image, fresh, want, options_.quality_level, options_.min_distance_px, mask, 3);
+  cv::goodFeaturesToTrack(image, fresh, want, options_.quality_level, options_.min_distance_px,
+                          mask, 3);
   prev_points_.insert(prev_points_.end(), fresh.begin(), fresh.end());
 }
 
@@ -296,19 +310,24 @@ FrameEstimate FrameBaseline::addFrame(int64_t t_ns, const cv::Mat& image) {
   struct Timer {
     std::chrono::steady_clock::time_point t0;
     double* acc;
-    ~Timer() { *acc += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); }
+    ~Timer() {
+      *acc += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    }
   } timer{wall0, &stats_.processing_s};
 
   if (image.empty() || image.type() != CV_8UC1)
-    throw std::invalid_argument("FrameBaseline: frame must be 8-bit single channel (mono8), got type " +
-                                std::to_string(image.type()) + (image.empty() ? " (empty)" : ""));
+    throw std::invalid_argument(
+        "FrameBaseline: frame must be 8-bit single channel (mono8), got type " +
+        std::to_string(image.type()) + (image.empty() ? " (empty)" : ""));
   if (image.cols != camera_.width() || image.rows != camera_.height())
     throw std::invalid_argument("FrameBaseline: frame is " + std::to_string(image.cols) + "x" +
                                 std::to_string(image.rows) + " but the calibration is " +
-                                std::to_string(camera_.width()) + "x" + std::to_string(camera_.height()));
+                                std::to_string(camera_.width()) + "x" +
+                                std::to_string(camera_.height()));
   if (started_ && t_ns <= chain_.endTime())
     throw std::invalid_argument("FrameBaseline: frame stamp " + fmt("%.6f", nsToSec(t_ns)) +
-                                " s is not after the previous " + fmt("%.6f", nsToSec(chain_.endTime())) + " s");
+                                " s is not after the previous " +
+                                fmt("%.6f", nsToSec(chain_.endTime())) + " s");
   FrameEstimate e;
   e.t_ns = t_ns;
   e.t_prev_ns = prev_t_ns_;
@@ -319,8 +338,10 @@ FrameEstimate FrameBaseline::addFrame(int64_t t_ns, const cv::Mat& image) {
   cv::meanStdDev(image, mean, stddev);
   const double saturated = static_cast<double>(cv::countNonZero(image >= 255)) / image.total();
   std::string bad;
-  if (saturated > options_.max_saturated_fraction) bad = fmt("over-exposed (%.0f %% saturated)", 100 * saturated);
-  else if (stddev[0] < options_.min_contrast_dn) bad = fmt("low contrast (std dev %.2f DN, mean %.1f DN)", stddev[0], mean[0]);
+  if (saturated > options_.max_saturated_fraction)
+    bad = fmt("over-exposed (%.0f %% saturated)", 100 * saturated);
+  else if (stddev[0] < options_.min_contrast_dn)
+    bad = fmt("low contrast (std dev %.2f DN, mean %.1f DN)", stddev[0], mean[0]);
   if (!bad.empty()) {
     prev_image_.release();
     prev_points_.clear();
@@ -370,8 +391,10 @@ FrameEstimate FrameBaseline::addFrame(int64_t t_ns, const cv::Mat& image) {
   const cv::TermCriteria term(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01);
   std::vector<cv::Point2f> p0, p1;
   if (!prev_points_.empty()) {
-    cv::calcOpticalFlowPyrLK(prev_image_, image, prev_points_, cur, st_f, err, win, options_.klt_levels, term);
-    cv::calcOpticalFlowPyrLK(image, prev_image_, cur, back, st_b, err, win, options_.klt_levels, term);
+    cv::calcOpticalFlowPyrLK(prev_image_, image, prev_points_, cur, st_f, err, win,
+                             options_.klt_levels, term);
+    cv::calcOpticalFlowPyrLK(image, prev_image_, cur, back, st_b, err, win, options_.klt_levels,
+                             term);
     const float b = static_cast<float>(options_.border_px);
     for (size_t i = 0; i < prev_points_.size(); ++i) {
       if (!st_f[i] || !st_b[i]) continue;
@@ -406,8 +429,8 @@ FrameEstimate FrameBaseline::addFrame(int64_t t_ns, const cv::Mat& image) {
     }
     const ThetaRansacResult r =
         estimateThetaRansac(fr, ft, e.v * dt, T_base_cam_, options_.omega_max_rad_s * dt,
-                            options_.inlier_threshold_px / focal_px_, options_.max_hypotheses, options_.min_inliers,
-                            options_.seed + rng_counter_++);
+                            options_.inlier_threshold_px / focal_px_, options_.max_hypotheses,
+                            options_.min_inliers, options_.seed + rng_counter_++);
     e.inliers = static_cast<int>(r.inliers.size());
     for (int i : r.inliers) inlier[i] = true;
     if (!r.ok || e.inliers < options_.min_inlier_fraction * e.tracks) {

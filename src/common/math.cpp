@@ -11,7 +11,9 @@ Mat3 rotZ(double yaw) {
   return R;
 }
 
-double yawOf(const Mat3& R) { return std::atan2(R(1, 0), R(0, 0)); }
+double yawOf(const Mat3& R) {
+  return std::atan2(R(1, 0), R(0, 0));
+}
 
 double wrapAngle(double a) {
   a = std::fmod(a + kPi, 2.0 * kPi);
@@ -33,7 +35,9 @@ double angleBetween(const Vec3& a, const Vec3& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b));
 }
 
-Pose3 planarPose(double x, double y, double yaw) { return makePose(rotZ(yaw), Vec3(x, y, 0.0)); }
+Pose3 planarPose(double x, double y, double yaw) {
+  return makePose(rotZ(yaw), Vec3(x, y, 0.0));
+}
 
 Pose3 makePose(const Mat3& R, const Vec3& t) {
   Pose3 T = Pose3::Identity();
@@ -42,7 +46,9 @@ Pose3 makePose(const Mat3& R, const Vec3& t) {
   return T;
 }
 
-Pose3 makePose(const Quat& q, const Vec3& t) { return makePose(q.normalized().toRotationMatrix(), t); }
+Pose3 makePose(const Quat& q, const Vec3& t) {
+  return makePose(q.normalized().toRotationMatrix(), t);
+}
 
 Pose3 interpolatePose(const Pose3& a, const Pose3& b, double alpha) {
   const Quat qa(a.linear()), qb(b.linear());

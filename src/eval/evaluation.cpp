@@ -1,13 +1,12 @@
 #include "vwe_vo/eval/evaluation.h"
 
-#include <fstream>
-
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <limits>
 #include <memory>
 #include <sstream>
@@ -482,13 +481,15 @@ std::string formatTable(const EvaluationResult& r) {
 
 bool meanYawRate(const Trajectory3& gt, int64_t t0_ns, int64_t t1_ns, double* rate_rad_s) {
   Pose3 a, b;
-  if (t1_ns <= t0_ns || !interpolateTrajectory(gt, t0_ns, &a) || !interpolateTrajectory(gt, t1_ns, &b))
+  if (t1_ns <= t0_ns || !interpolateTrajectory(gt, t0_ns, &a) ||
+      !interpolateTrajectory(gt, t1_ns, &b))
     return false;
   *rate_rad_s = yawOf(a.linear().transpose() * b.linear()) / dtSec(t1_ns, t0_ns);
   return true;
 }
 
-WindowYawRateResult evaluateWindowYawRates(const Trajectory3& gt, const std::vector<WindowYawRate>& windows) {
+WindowYawRateResult evaluateWindowYawRates(const Trajectory3& gt,
+                                           const std::vector<WindowYawRate>& windows) {
   WindowYawRateResult r;
   for (const WindowYawRate& w : windows) {
     if (w.standstill) {
@@ -524,7 +525,8 @@ std::vector<WindowYawRate> readArcsCsv(const std::string& path) {
     if (it == header.end()) throw std::runtime_error(path + ":1: no column '" + name + "'");
     return size_t(it - header.begin());
   };
-  const size_t c0 = column("t_start"), c1 = column("t_end"), cw = column("omega"), cs = column("status");
+  const size_t c0 = column("t_start"), c1 = column("t_end"), cw = column("omega"),
+               cs = column("status");
   std::vector<WindowYawRate> out;
   int line_number = 1;
   while (std::getline(in, line)) {
@@ -534,15 +536,17 @@ std::vector<WindowYawRate> readArcsCsv(const std::string& path) {
     std::stringstream ls(line);
     for (std::string c; std::getline(ls, c, ',');) f.push_back(c);
     if (f.size() < header.size())
-      throw std::runtime_error(path + ":" + std::to_string(line_number) + ": expected " + std::to_string(header.size()) +
-                               " columns, got " + std::to_string(f.size()));
+      throw std::runtime_error(path + ":" + std::to_string(line_number) + ": expected " +
+                               std::to_string(header.size()) + " columns, got " +
+                               std::to_string(f.size()));
     WindowYawRate w;
     try {
       w.t_start_ns = secToNs(std::stod(f[c0]));
       w.t_end_ns = secToNs(std::stod(f[c1]));
       w.omega_rad_s = std::stod(f[cw]);
     } catch (const std::exception&) {
-      throw std::runtime_error(path + ":" + std::to_string(line_number) + ": malformed number in '" + line + "'");
+      throw std::runtime_error(path + ":" + std::to_string(line_number) +
+                               ": malformed number in '" + line + "'");
     }
     w.standstill = f[cs] == "STANDSTILL";
     out.push_back(w);

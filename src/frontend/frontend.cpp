@@ -1,11 +1,12 @@
 #include "vwe_vo/frontend/frontend.h"
-#include "vwe_vo/common/validated.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
 #include <stdexcept>
+
+#include "vwe_vo/common/validated.h"
 
 namespace vwe_vo {
 
@@ -16,8 +17,8 @@ namespace {
 /// the three points instead of a golden-section step. Stops when the bracket is narrower than
 /// tol (or after max_iter evaluations).
 template <typename F>
-double brentMaximize(F&& f, double a, double b, double x0, double f0, double fa, double fb, double tol, int max_iter,
-                     double* f_best) {
+double brentMaximize(F&& f, double a, double b, double x0, double f0, double fa, double fb,
+                     double tol, int max_iter, double* f_best) {
   const double kGolden = 0.3819660112501051;
   double x = x0, w = x0, u = x0, fx = -f0, fw = -f0, fv = -f0, v = x0;  // minimise -f
   double d = 0.0, e = 0.0;
@@ -72,10 +73,14 @@ double brentMaximize(F&& f, double a, double b, double x0, double f0, double fa,
 
 const char* toString(ArcStatus s) {
   switch (s) {
-    case ArcStatus::kOk: return "OK";
-    case ArcStatus::kStandstill: return "STANDSTILL";
-    case ArcStatus::kLost: return "LOST";
-    case ArcStatus::kLowEvents: return "LOW_EVENTS";
+    case ArcStatus::kOk:
+      return "OK";
+    case ArcStatus::kStandstill:
+      return "STANDSTILL";
+    case ArcStatus::kLost:
+      return "LOST";
+    case ArcStatus::kLowEvents:
+      return "LOW_EVENTS";
   }
   return "?";
 }
@@ -83,7 +88,8 @@ const char* toString(ArcStatus s) {
 void FrontendOptions::validate(const std::string& section) const {
   auto fail = [&](const std::string& m) { throw std::invalid_argument(section + "." + m); };
   volume.validate(section + ".volume");
-  if (!(window_duration_s > 0.005 && window_duration_s <= 5.0)) fail("window_duration_s must be in (0.005, 5] s");
+  if (!(window_duration_s > 0.005 && window_duration_s <= 5.0))
+    fail("window_duration_s must be in (0.005, 5] s");
   if (!(window_stride_s >= 0 && window_stride_s <= window_duration_s))
     fail("window_stride_s must be in [0, window_duration_s] (0: equal to window_duration_s)");
   if (window_by_count && window_events < 100) fail("window_events must be at least 100");
@@ -92,25 +98,30 @@ void FrontendOptions::validate(const std::string& section) const {
     fail("subsample_time_slices must be in [1, max_events_per_volume / 10]");
   if (!(std::isfinite(nominal_speed_mps) && nominal_speed_mps >= 0 && nominal_speed_mps < 60))
     fail("nominal_speed_mps must be in [0, 60) m/s");
-  if (!(omega_max_rad_s > 0 && omega_max_rad_s <= 10)) fail("omega_max_rad_s must be in (0, 10] rad/s");
+  if (!(omega_max_rad_s > 0 && omega_max_rad_s <= 10))
+    fail("omega_max_rad_s must be in (0, 10] rad/s");
   if (!(scan_half_range_rad_s > 0)) fail("scan_half_range_rad_s must be positive");
-  if (!(scan_step_rad_s > 0 && scan_step_rad_s < scan_half_range_rad_s)) fail("scan_step_rad_s must be in (0, scan_half_range_rad_s)");
+  if (!(scan_step_rad_s > 0 && scan_step_rad_s < scan_half_range_rad_s))
+    fail("scan_step_rad_s must be in (0, scan_half_range_rad_s)");
   if (!(full_scan_step_rad_s >= scan_step_rad_s && full_scan_step_rad_s <= omega_max_rad_s))
     fail("full_scan_step_rad_s must be in [scan_step_rad_s, omega_max_rad_s]");
   if (full_scan_candidates < 1) fail("full_scan_candidates must be at least 1");
   if (full_scan_max_events > 0 && full_scan_max_events < 100)
     fail("full_scan_max_events must be 0 (all) or at least 100");
-  if (!(refine_tolerance_rad_s > 0 && refine_tolerance_rad_s < scan_step_rad_s)) fail("refine_tolerance_rad_s must be in (0, scan_step_rad_s)");
+  if (!(refine_tolerance_rad_s > 0 && refine_tolerance_rad_s < scan_step_rad_s))
+    fail("refine_tolerance_rad_s must be in (0, scan_step_rad_s)");
   if (!(standstill_event_rate_hz >= 0)) fail("standstill_event_rate_hz must be >= 0");
   if (!(standstill_speed_mps >= 0)) fail("standstill_speed_mps must be >= 0");
   if (!(min_confidence >= 0 && min_confidence < 1)) fail("min_confidence must be in [0, 1)");
-  if (!(rescan_confidence >= 0 && rescan_confidence < 1)) fail("rescan_confidence must be in [0, 1)");
+  if (!(rescan_confidence >= 0 && rescan_confidence < 1))
+    fail("rescan_confidence must be in [0, 1)");
   if (!(gyro_prior_half_range_rad_s > 0)) fail("gyro_prior_half_range_rad_s must be positive");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
   one_sided.validate(volume, section);
 }
 
-Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera, const Pose3& T_base_cam)
+Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera,
+                   const Pose3& T_base_cam)
     : options_(options),
       camera_(camera),
       T_base_cam_(T_base_cam),
@@ -122,7 +133,8 @@ Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera, co
   if (one_sided_.enabled()) {
     const VolumeOptions deeper = one_sided_.deeperPlanes(options_.volume);
     const CameraCalibration& c = camera.calibration();
-    one_sided_volume_ = std::make_unique<ProjectiveVolume>(deeper, camera.width(), camera.height(), c.fx, c.fy, c.cx, c.cy);
+    one_sided_volume_ = std::make_unique<ProjectiveVolume>(deeper, camera.width(), camera.height(),
+                                                           c.fx, c.fy, c.cx, c.cy);
     one_sided_objective_ = std::make_unique<VweObjective>(camera_, one_sided_volume_.get());
     one_sided_scan_objectives_ = std::make_unique<VweObjectivePool>(camera_, deeper);
   }
@@ -192,8 +204,11 @@ bool Frontend::nextWindow(EventVector* window, int64_t* t0, int64_t* t1) const {
 
 size_t Frontend::pendingWindows() const {
   if (buffer_.empty() || next_window_start_ns_ < 0) return 0;
-  if (options_.window_by_count) return (buffer_.size() - buffer_.lowerBound(next_window_start_ns_)) / (options_.window_events + 1);
-  const int64_t span = buffer_.newestTime() - next_window_start_ns_ - secToNs(options_.window_duration_s);
+  if (options_.window_by_count)
+    return (buffer_.size() - buffer_.lowerBound(next_window_start_ns_)) /
+           (options_.window_events + 1);
+  const int64_t span =
+      buffer_.newestTime() - next_window_start_ns_ - secToNs(options_.window_duration_s);
   return span >= 0 ? size_t(span / strideNs()) + 1 : 0;
 }
 
@@ -235,7 +250,8 @@ bool Frontend::gyroAt(int64_t t0, int64_t t1, double* yaw_rate) const {
   return true;
 }
 
-double Frontend::contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v, bool deep_planes) {
+double Frontend::contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v,
+                          bool deep_planes) {
   if (deep_planes && !one_sided_objective_)
     throw std::logic_error("Frontend: deep planes need one_sided.balance > 0");
   const AckermannArcModel model(omega, v, t_ref_ns, T_base_cam_);
@@ -244,8 +260,9 @@ double Frontend::contrast(const EventVector& events, int64_t t_ref_ns, double om
   return objective.evaluate(events, model).contrast;
 }
 
-std::vector<double> Frontend::contrasts(const EventVector& events, int64_t t_ref_ns, const std::vector<double>& omegas,
-                                        double v, bool deep_planes) {
+std::vector<double> Frontend::contrasts(const EventVector& events, int64_t t_ref_ns,
+                                        const std::vector<double>& omegas, double v,
+                                        bool deep_planes) {
   if (deep_planes && !one_sided_scan_objectives_)
     throw std::logic_error("Frontend: deep planes need one_sided.balance > 0");
   std::vector<double> f(omegas.size());
@@ -258,8 +275,8 @@ std::vector<double> Frontend::contrasts(const EventVector& events, int64_t t_ref
   return f;
 }
 
-ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns, double v, double center,
-                                     double half_range, const WindowScan& setup) {
+ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns, double v,
+                                     double center, double half_range, const WindowScan& setup) {
   ArcEstimate arc;
   arc.t_ref_ns = t_ref_ns;
   arc.v = v;
@@ -274,7 +291,8 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   };
   auto covered = [&](double w) { return coveredIn(f_of_w, w); };
   // Evaluates `evs` on a grid over [lo, hi] into f, skipping the points f already covers.
-  auto scanInto = [&](const EventVector& evs, std::map<double, double>& f, double lo, double hi, double scan_step) {
+  auto scanInto = [&](const EventVector& evs, std::map<double, double>& f, double lo, double hi,
+                      double scan_step) {
     lo = std::max(lo, -wmax);
     hi = std::min(hi, wmax);
     const int n = std::max(2, int(std::ceil((hi - lo) / scan_step - 1e-9)) + 1);
@@ -289,7 +307,9 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
     arc.evaluations += int(ws.size());
     return std::make_pair(lo, hi);
   };
-  auto scan = [&](double lo, double hi, double scan_step) { return scanInto(events, f_of_w, lo, hi, scan_step); };
+  auto scan = [&](double lo, double hi, double scan_step) {
+    return scanInto(events, f_of_w, lo, hi, scan_step);
+  };
   auto best = [&] {
     return std::max_element(f_of_w.begin(), f_of_w.end(),
                             [](const auto& p, const auto& q) { return p.second < q.second; });
@@ -300,7 +320,8 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   // between coarse points losing to a broad one).
   auto fullScan = [&] {
     const double coarse = std::max(step, options_.full_scan_step_rad_s);
-    const double lo = std::max(-wmax, setup.rescan_lo_rad_s), hi = std::min(wmax, setup.rescan_hi_rad_s);
+    const double lo = std::max(-wmax, setup.rescan_lo_rad_s),
+                 hi = std::min(wmax, setup.rescan_hi_rad_s);
     // The coarse grid only has to find the basins, so with many events it votes every k-th of
     // them (full_scan_max_events). Its values are then on another scale (the density grows
     // with the events) and stay out of f_of_w; the full set is evaluated at its lowest point,
@@ -329,9 +350,10 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
     const size_t k = std::min(maxima.size(), size_t(options_.full_scan_candidates));
     for (size_t i = 0; i < k; ++i) scan(maxima[i].second - coarse, maxima[i].second + coarse, step);
     if (thin) {
-      const double w_min = std::min_element(grid.begin(), grid.end(), [](const auto& p, const auto& q) {
-                             return p.second < q.second;
-                           })->first;
+      const double w_min =
+          std::min_element(grid.begin(), grid.end(), [](const auto& p, const auto& q) {
+            return p.second < q.second;
+          })->first;
       if (!covered(w_min)) {
         f_of_w[w_min] = contrast(events, t_ref_ns, w_min, v, setup.deep_planes);
         ++arc.evaluations;
@@ -376,7 +398,8 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
     ++arc.evaluations;
     return contrast(events, t_ref_ns, w, v, setup.deep_planes);
   };
-  const double w_ref = brentMaximize(f, a, b, best_w, best_f, fa, fb, options_.refine_tolerance_rad_s, 30, &f_ref);
+  const double w_ref =
+      brentMaximize(f, a, b, best_w, best_f, fa, fb, options_.refine_tolerance_rad_s, 30, &f_ref);
   if (f_ref >= best_f) best_w = w_ref, best_f = f_ref;
   arc.omega = best_w;
   arc.contrast = best_f;
@@ -385,15 +408,16 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   return arc;
 }
 
-ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_t t1, WindowScan setup,
-                                   bool* scanned) {
+ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_t t1,
+                                   WindowScan setup, bool* scanned) {
   ArcEstimate arc;
   const double duration = dtSec(t1, t0);
   bool odom_standstill = false;
   const double v = speedAt(t0, t1, &odom_standstill);
   const double rate = double(events.size()) / std::max(duration, 1e-6);
-  const int64_t t_ref =
-      events.empty() ? t0 + (t1 - t0) / 2 : events.front().t_ns + (events.back().t_ns - events.front().t_ns) / 2;
+  const int64_t t_ref = events.empty()
+                            ? t0 + (t1 - t0) / 2
+                            : events.front().t_ns + (events.back().t_ns - events.front().t_ns) / 2;
   *scanned = false;
   if (odom_standstill || rate < options_.standstill_event_rate_hz) {
     arc.status = ArcStatus::kStandstill;
@@ -403,12 +427,14 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
     arc.omega = last_omega_;
     arc.v = v;
   } else {
-    const EventVector sub = subsampleEventsPerTimeSlice(events, t0, t1, options_.max_events_per_volume,
-                                                        options_.subsample_time_slices, options_.seed + stats_.windows);
+    const EventVector sub =
+        subsampleEventsPerTimeSlice(events, t0, t1, options_.max_events_per_volume,
+                                    options_.subsample_time_slices, options_.seed + stats_.windows);
     double center = lost_ ? 0.0 : last_omega_;
     double half = lost_ ? options_.omega_max_rad_s : options_.scan_half_range_rad_s;
     double gyro = 0.0;
-    if (options_.use_gyro_prior && gyroAt(t0, t1, &gyro)) center = gyro, half = options_.gyro_prior_half_range_rad_s;
+    if (options_.use_gyro_prior && gyroAt(t0, t1, &gyro))
+      center = gyro, half = options_.gyro_prior_half_range_rad_s;
     setup.deep_planes = false;
     if (one_sided_.oneSided(sub)) {
       // The prediction: the gyro's yaw rate where /dvs/imu gives one, else the previous arc's,
@@ -417,7 +443,8 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
       double predicted = lost_ ? 0.0 : last_omega_;
       gyroAt(t0, t1, &predicted);
       ++stats_.evaluations;
-      setup.deep_planes = one_sided_.deepEnough(objective_, sub, AckermannArcModel(predicted, v, t_ref, T_base_cam_));
+      setup.deep_planes = one_sided_.deepEnough(
+          objective_, sub, AckermannArcModel(predicted, v, t_ref, T_base_cam_));
       stats_.windows_one_sided += setup.deep_planes;
       stats_.windows_one_sided_near += !setup.deep_planes;
     }
@@ -446,7 +473,8 @@ std::vector<ArcEstimate> Frontend::process() {
     // badly, so the window is estimated again as two halves (not with overlapping windows).
     const bool tiles = options_.window_by_count || options_.window_stride_s <= 0 ||
                        options_.window_stride_s >= options_.window_duration_s;
-    if (scanned && !was_lost && arc.status == ArcStatus::kOk && tiles && options_.split_omega_change_rad_s > 0 &&
+    if (scanned && !was_lost && arc.status == ArcStatus::kOk && tiles &&
+        options_.split_omega_change_rad_s > 0 &&
         std::abs(arc.omega - previous_omega) > options_.split_omega_change_rad_s) {
       const int64_t tm = t0 + (t1 - t0) / 2;
       const auto mid = std::lower_bound(window.begin(), window.end(), tm,
@@ -474,7 +502,9 @@ std::vector<ArcEstimate> Frontend::process() {
     }
     const ArcEstimate& last = parts.back();
     lost_ = last.status == ArcStatus::kLost;
-    last_omega_ = last.status == ArcStatus::kOk ? last.omega : (arc.status == ArcStatus::kOk ? arc.omega : previous_omega);
+    last_omega_ = last.status == ArcStatus::kOk
+                      ? last.omega
+                      : (arc.status == ArcStatus::kOk ? arc.omega : previous_omega);
     ++stats_.windows;
     moveToNextWindow(t0, t1);
   }
@@ -482,7 +512,8 @@ std::vector<ArcEstimate> Frontend::process() {
 }
 
 int64_t Frontend::strideNs() const {
-  return options_.window_stride_s > 0 ? secToNs(options_.window_stride_s) : secToNs(options_.window_duration_s);
+  return options_.window_stride_s > 0 ? secToNs(options_.window_stride_s)
+                                      : secToNs(options_.window_duration_s);
 }
 
 void Frontend::extendChain(int64_t t0, int64_t t1, double omega, double v) {
@@ -503,7 +534,8 @@ void Frontend::moveToNextWindow(int64_t t0, int64_t t1) {
 Trajectory3 integrateArcs(const std::vector<ArcEstimate>& arcs, int64_t step_ns) {
   std::vector<TimedRates> rates;
   rates.reserve(arcs.size());
-  for (const ArcEstimate& a : arcs) rates.push_back({a.t_start_ns, a.t_ref_ns, a.t_end_ns, {a.omega, a.v}});
+  for (const ArcEstimate& a : arcs)
+    rates.push_back({a.t_start_ns, a.t_ref_ns, a.t_end_ns, {a.omega, a.v}});
   return integrateRamps(rates, step_ns);
 }
 
@@ -514,6 +546,8 @@ void Frontend::setNominalSpeed(double v_mps) {
   options_.nominal_speed_mps = v_mps;
 }
 
-Pose3 Frontend::T_odom_base(int64_t t_ns) const { return chain_ ? chain_->T_odom_base(t_ns) : Pose3::Identity(); }
+Pose3 Frontend::T_odom_base(int64_t t_ns) const {
+  return chain_ ? chain_->T_odom_base(t_ns) : Pose3::Identity();
+}
 
 }  // namespace vwe_vo

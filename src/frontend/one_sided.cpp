@@ -6,16 +6,21 @@
 namespace vwe_vo {
 
 void OneSidedOptions::validate(const VolumeOptions& normal, const std::string& section) const {
-  auto fail = [&](const std::string& m) { throw std::invalid_argument(section + ".one_sided_" + m); };
+  auto fail = [&](const std::string& m) {
+    throw std::invalid_argument(section + ".one_sided_" + m);
+  };
   if (!(balance >= 0 && balance < 1)) fail("balance must be in [0, 1)");
   if (balance == 0) return;
-  if (!(z_min_m > normal.z_min_m && z_min_m < normal.z_max_m)) fail("z_min_m must be in (volume.z_min_m, volume.z_max_m)");
+  if (!(z_min_m > normal.z_min_m && z_min_m < normal.z_max_m))
+    fail("z_min_m must be in (volume.z_min_m, volume.z_max_m)");
   if (!(min_depth_m > 0 && min_depth_m < 1e4)) fail("min_depth_m must be in (0, 1e4) m");
 }
 
 namespace {
-/// Straight ahead of base_link in a pinhole (fx, fy, cx, cy); false if the camera does not look forward.
-bool forwardPixelIn(double fx, double fy, double cx, double cy, const Pose3& T_base_cam, Vec2* pixel) {
+/// Straight ahead of base_link in a pinhole (fx, fy, cx, cy); false if the camera does not look
+/// forward.
+bool forwardPixelIn(double fx, double fy, double cx, double cy, const Pose3& T_base_cam,
+                    Vec2* pixel) {
   const Vec3 d = T_base_cam.linear().transpose() * Vec3::UnitX();  // in the camera frame
   if (!(d.z() > 1e-3)) return false;
   *pixel = Vec2(fx * d.x() / d.z() + cx, fy * d.y() / d.z() + cy);
@@ -32,13 +37,17 @@ double sideBalance(const EventVector& events, const Vec2& pixel) {
   size_t left = 0, right = 0;
   for (const PixelEvent& e : events) {
     if (e.y >= pixel.y()) continue;
-    if (e.x < pixel.x()) ++left; else ++right;
+    if (e.x < pixel.x())
+      ++left;
+    else
+      ++right;
   }
   const size_t most = std::max(left, right);
   return most == 0 ? 1.0 : double(std::min(left, right)) / double(most);
 }
 
-double oneSidedDepth(const ProjectiveVolume& volume, const std::vector<VolumeRay>& rays, const Vec2& pixel) {
+double oneSidedDepth(const ProjectiveVolume& volume, const std::vector<VolumeRay>& rays,
+                     const Vec2& pixel) {
   size_t left = 0, right = 0;
   for (const VolumeRay& r : rays)
     if (r.v0 < pixel.y()) ++(r.u0 < pixel.x() ? left : right);
@@ -56,7 +65,8 @@ double oneSidedDepth(const ProjectiveVolume& volume, const std::vector<VolumeRay
   return *mid;
 }
 
-OneSidedRule::OneSidedRule(const OneSidedOptions& options, const CameraModel& camera, const Pose3& T_base_cam)
+OneSidedRule::OneSidedRule(const OneSidedOptions& options, const CameraModel& camera,
+                           const Pose3& T_base_cam)
     : options_(options), T_base_cam_(T_base_cam) {
   enabled_ = options_.balance > 0 && forwardPixel(camera, T_base_cam_, &forward_pixel_);
 }
@@ -71,7 +81,8 @@ bool OneSidedRule::oneSided(const EventVector& events) const {
   return enabled_ && sideBalance(events, forward_pixel_) < options_.balance;
 }
 
-bool OneSidedRule::deepEnough(VweObjective& normal, const EventVector& events, const TrajectoryModel& model) const {
+bool OneSidedRule::deepEnough(VweObjective& normal, const EventVector& events,
+                              const TrajectoryModel& model) const {
   ProjectiveVolume& volume = normal.volume();
   // Straight ahead in the volume's grid (the rays' (u0, v0) are directions in its pinhole);
   // enabled() means the camera looks forward.

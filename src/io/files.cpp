@@ -54,7 +54,8 @@ std::string defaultConfigDir() {
     std::string entry;
     while (std::getline(ss, entry, ':')) {
       if (entry.empty()) continue;
-      if (namesVweVo(fs::path(entry) / "package.xml")) candidates.push_back(fs::path(entry) / "config");
+      if (namesVweVo(fs::path(entry) / "package.xml"))
+        candidates.push_back(fs::path(entry) / "config");
       candidates.push_back(fs::path(entry) / "vwe_vo/config");
     }
   }
@@ -72,7 +73,8 @@ std::string defaultConfigDir() {
   }
   throw std::runtime_error(
       "cannot find vwe_vo's config folder (vwe_vo.yaml, davis346.yaml); set VWE_VO_CONFIG_DIR or "
-      "pass the files explicitly. Looked in:" + looked);
+      "pass the files explicitly. Looked in:" +
+      looked);
 }
 
 }  // namespace vwe_vo

@@ -1,5 +1,4 @@
 #include "vwe_vo/io/options_yaml.h"
-#include "vwe_vo/io/files.h"
 
 #include <yaml-cpp/yaml.h>
 
@@ -9,6 +8,7 @@
 #include <string>
 
 #include "vwe_vo/io/config.h"
+#include "vwe_vo/io/files.h"
 
 #ifndef VWE_VO_CONFIG_DIR
 #define VWE_VO_CONFIG_DIR ""
@@ -306,8 +306,8 @@ PipelineConfig loadPipelineConfig(const std::string& path,
     } catch (const YAML::Exception& e) {
       throw std::runtime_error(path + ": cannot read configuration: " + e.what());
     }
-    static const std::set<std::string> known = {"camera_calibration", "T_base_cam", "frontend",
-                                                "backend", "baseline", "mapping"};
+    static const std::set<std::string> known = {
+        "camera_calibration", "T_base_cam", "frontend", "backend", "baseline", "mapping"};
     for (const auto& kv : root)
       if (!known.count(kv.first.as<std::string>()))
         cfg.warnings.push_back(path + ": unknown top-level key '" + kv.first.as<std::string>() +

@@ -107,7 +107,8 @@ Trajectory3 readTum(const std::string& path) {
     if (!parseNumbers(line, 8, 8, &v))
       in.fail("expected 8 numbers 't px py pz qx qy qz qw', got '" + line + "'");
     const double qn = std::sqrt(v[4] * v[4] + v[5] * v[5] + v[6] * v[6] + v[7] * v[7]);
-    if (std::abs(qn - 1.0) > 1e-3) in.fail("quaternion is not unit length (norm " + std::to_string(qn) + ")");
+    if (std::abs(qn - 1.0) > 1e-3)
+      in.fail("quaternion is not unit length (norm " + std::to_string(qn) + ")");
     StampedPose sp;
     sp.t_ns = secToNs(v[0]);
     sp.T = poseFromTumNumbers(v.data() + 1);
@@ -145,14 +146,17 @@ size_t EcdEventReader::read(size_t max_events, EventVector* out) {
     const std::string& line = r.line;
     std::vector<double>& v = r.v;
     if (isBlankOrComment(line)) continue;
-    if (!parseNumbers(line, 4, 4, &v)) r.in.fail("expected 4 numbers 't x y p', got '" + line + "'");
-    if (v[1] < 0 || v[2] < 0 || v[1] != std::floor(v[1]) || v[2] != std::floor(v[2]) || v[1] > 65535 ||
-        v[2] > 65535)
+    if (!parseNumbers(line, 4, 4, &v))
+      r.in.fail("expected 4 numbers 't x y p', got '" + line + "'");
+    if (v[1] < 0 || v[2] < 0 || v[1] != std::floor(v[1]) || v[2] != std::floor(v[2]) ||
+        v[1] > 65535 || v[2] > 65535)
       r.in.fail("pixel coordinates must be non-negative integers, got '" + line + "'");
     if ((r.width > 0 && v[1] >= r.width) || (r.height > 0 && v[2] >= r.height))
       r.in.fail("event at (" + std::to_string(int(v[1])) + ", " + std::to_string(int(v[2])) +
-                ") is outside the " + std::to_string(r.width) + "x" + std::to_string(r.height) + " sensor");
-    if (v[3] != 0 && v[3] != 1 && v[3] != -1) r.in.fail("polarity must be 0 or 1, got '" + line + "'");
+                ") is outside the " + std::to_string(r.width) + "x" + std::to_string(r.height) +
+                " sensor");
+    if (v[3] != 0 && v[3] != 1 && v[3] != -1)
+      r.in.fail("polarity must be 0 or 1, got '" + line + "'");
     PixelEvent e;
     e.t_ns = secToNs(v[0]);
     e.x = static_cast<uint16_t>(v[1]);
@@ -172,19 +176,25 @@ EventVector readEcdEvents(const std::string& path, int width, int height) {
   return all;
 }
 
-EcdEventWriter::EcdEventWriter(const std::string& path) : path_(path), file_(std::fopen(path.c_str(), "w")) {
+EcdEventWriter::EcdEventWriter(const std::string& path)
+    : path_(path), file_(std::fopen(path.c_str(), "w")) {
   if (!file_) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
 }
 
-EcdEventWriter::~EcdEventWriter() { std::fclose(file_); }
+EcdEventWriter::~EcdEventWriter() {
+  std::fclose(file_);
+}
 
 void EcdEventWriter::write(const EventVector& events) {
   for (const PixelEvent& e : events)
-    if (std::fprintf(file_, "%.9f %u %u %d\n", nsToSec(e.t_ns), e.x, e.y, e.polarity > 0 ? 1 : 0) < 0)
+    if (std::fprintf(file_, "%.9f %u %u %d\n", nsToSec(e.t_ns), e.x, e.y, e.polarity > 0 ? 1 : 0) <
+        0)
       throw std::runtime_error("cannot write " + path_ + ": " + std::strerror(errno));
 }
 
-void writeEcdEvents(const std::string& path, const EventVector& events) { EcdEventWriter(path).write(events); }
+void writeEcdEvents(const std::string& path, const EventVector& events) {
+  EcdEventWriter(path).write(events);
+}
 
 EcdCalibration readEcdCalibration(const std::string& path) {
   LineReader in(path);
@@ -192,7 +202,8 @@ EcdCalibration readEcdCalibration(const std::string& path) {
   std::vector<double> v;
   while (in.next(&line)) {
     if (isBlankOrComment(line)) continue;
-    if (!parseNumbers(line, 4, 9, &v)) in.fail("expected 'fx fy cx cy [k1 k2 p1 p2 k3]', got '" + line + "'");
+    if (!parseNumbers(line, 4, 9, &v))
+      in.fail("expected 'fx fy cx cy [k1 k2 p1 p2 k3]', got '" + line + "'");
     v.resize(9, 0.0);
     EcdCalibration c{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]};
     if (c.fx <= 0 || c.fy <= 0) in.fail("focal lengths must be positive");
@@ -203,8 +214,8 @@ EcdCalibration readEcdCalibration(const std::string& path) {
 
 void writeEcdCalibration(const std::string& path, const EcdCalibration& c) {
   auto f = openForWriting(path);
-  std::fprintf(f.get(), "%.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g\n", c.fx, c.fy, c.cx, c.cy, c.k1,
-               c.k2, c.p1, c.p2, c.k3);
+  std::fprintf(f.get(), "%.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g\n", c.fx, c.fy, c.cx, c.cy,
+               c.k1, c.k2, c.p1, c.p2, c.k3);
 }
 
 Pose3 readPoseLine(const std::string& path) {
@@ -213,7 +224,8 @@ Pose3 readPoseLine(const std::string& path) {
   std::vector<double> v;
   while (in.next(&line)) {
     if (isBlankOrComment(line)) continue;
-    if (!parseNumbers(line, 7, 7, &v)) in.fail("expected 'px py pz qx qy qz qw', got '" + line + "'");
+    if (!parseNumbers(line, 7, 7, &v))
+      in.fail("expected 'px py pz qx qy qz qw', got '" + line + "'");
     const double qn = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
     if (std::abs(qn - 1.0) > 1e-3) in.fail("quaternion is not unit length");
     return poseFromTumNumbers(v.data());

@@ -337,7 +337,8 @@ void EmvsMapper::addEvents(const EventVector& events) {
       const double burst = std::max(1.0, 0.01 * options_.max_event_rate_hz);
       tokens_ = t_tokens_ns_ == INT64_MIN
                     ? 1.0
-                    : std::min(burst, tokens_ + nsToSec(e.t_ns - t_tokens_ns_) * options_.max_event_rate_hz);
+                    : std::min(burst, tokens_ + nsToSec(e.t_ns - t_tokens_ns_) *
+                                                    options_.max_event_rate_hz);
       t_tokens_ns_ = e.t_ns;
       if (tokens_ < 1.0) {
         ++thinned_;

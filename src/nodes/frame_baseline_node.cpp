@@ -1,4 +1,5 @@
-// frame_baseline_node: the frame-based baseline as a ROS node (see vwe_vo/ros/frame_baseline_node.h).
+// frame_baseline_node: the frame-based baseline as a ROS node (see
+// vwe_vo/ros/frame_baseline_node.h).
 #include "vwe_vo/ros/frame_baseline_node.h"
 
 #include <ros/ros.h>

@@ -1,12 +1,11 @@
 #include "vwe_vo/pipeline/offline_pipeline.h"
-#include "vwe_vo/io/files.h"
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <algorithm>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -14,6 +13,7 @@
 #include <stdexcept>
 
 #include "vwe_vo/eval/evaluation.h"
+#include "vwe_vo/io/files.h"
 
 namespace vwe_vo {
 namespace {
@@ -132,21 +132,27 @@ void OfflinePipeline::backendLoop() {
 void OfflinePipeline::waitBackend() const {
   if (!backend_thread_.joinable()) return;
   std::unique_lock<std::mutex> lock(backend_mutex_);
-  backend_cv_.wait(lock, [&] { return (backend_jobs_.empty() && !backend_busy_) || backend_error_; });
+  backend_cv_.wait(lock,
+                   [&] { return (backend_jobs_.empty() && !backend_busy_) || backend_error_; });
   if (backend_error_) std::rethrow_exception(backend_error_);
 }
 
 void OfflinePipeline::setBackendArcsFromTruth(Trajectory3 truth, double blend) {
-  if (!backend_) throw std::logic_error("setBackendArcsFromTruth: there is no back-end (frontend_only)");
+  if (!backend_)
+    throw std::logic_error("setBackendArcsFromTruth: there is no back-end (frontend_only)");
   if (truth.empty()) throw std::invalid_argument("setBackendArcsFromTruth: the truth has no pose");
-  if (!std::isfinite(blend)) throw std::invalid_argument("setBackendArcsFromTruth: blend must be finite");
-  if (t_first_ >= 0) throw std::logic_error("setBackendArcsFromTruth: call it before the first events");
+  if (!std::isfinite(blend))
+    throw std::invalid_argument("setBackendArcsFromTruth: blend must be finite");
+  if (t_first_ >= 0)
+    throw std::logic_error("setBackendArcsFromTruth: call it before the first events");
   arc_truth_ = std::move(truth);
   arc_truth_blend_ = blend;
 }
 
-void OfflinePipeline::setFrontendFollowsBackend(const FollowOptions& options, bool frontend_has_odometry) {
-  if (t_first_ >= 0) throw std::logic_error("setFrontendFollowsBackend: call it before the first events");
+void OfflinePipeline::setFrontendFollowsBackend(const FollowOptions& options,
+                                                bool frontend_has_odometry) {
+  if (t_first_ >= 0)
+    throw std::logic_error("setFrontendFollowsBackend: call it before the first events");
   follower_ = FrontendFollower(options, frontend_has_odometry);
 }
 
@@ -192,13 +198,16 @@ void OfflinePipeline::addOdometry(int64_t t_ns, double v, double w) {
 }
 
 void OfflinePipeline::enableBaseline() {
-  if (!baseline_) baseline_ = std::make_unique<FrameBaseline>(config_.baseline, camera_, config_.T_base_cam);
+  if (!baseline_)
+    baseline_ = std::make_unique<FrameBaseline>(config_.baseline, camera_, config_.T_base_cam);
 }
 
 void OfflinePipeline::addFrame(int64_t t_ns, const cv::Mat& image) {
   if (baseline_) baseline_->addFrame(t_ns, image);
 }
-void OfflinePipeline::addGyro(int64_t t_ns, double w) { frontend_.addGyro(t_ns, w); }
+void OfflinePipeline::addGyro(int64_t t_ns, double w) {
+  frontend_.addGyro(t_ns, w);
+}
 
 void OfflinePipeline::finish() {
   const auto t0 = Clock::now();
@@ -399,17 +408,19 @@ nlohmann::json OfflinePipeline::report() const {
     double covered = 0, span = 0;
     for (const FrameEstimate& e : est) {
       if (e.t_prev_ns < 0 || e.status == FrameStatus::kFirst) continue;
-      if (e.status == FrameStatus::kOk || e.status == FrameStatus::kStandstill) covered += dtSec(e.t_ns, e.t_prev_ns);
+      if (e.status == FrameStatus::kOk || e.status == FrameStatus::kStandstill)
+        covered += dtSec(e.t_ns, e.t_prev_ns);
     }
     if (est.size() > 1) span = dtSec(est.back().t_ns, est.front().t_ns);
     const double frames_span = span > 0 ? span : duration;
-    j["stages"]["baseline"] = {{"processing_s", b.processing_s},
-                               {"real_time_factor", frames_span > 0 ? b.processing_s / frames_span : 0.0},
-                               {"frames", b.frames},
-                               {"frames_ok", b.ok},
-                               {"frames_standstill", b.standstill},
-                               {"frames_lost", b.lost},
-                               {"tracked_fraction", span > 0 ? covered / span : 0.0}};
+    j["stages"]["baseline"] = {
+        {"processing_s", b.processing_s},
+        {"real_time_factor", frames_span > 0 ? b.processing_s / frames_span : 0.0},
+        {"frames", b.frames},
+        {"frames_ok", b.ok},
+        {"frames_standstill", b.standstill},
+        {"frames_lost", b.lost},
+        {"tracked_fraction", span > 0 ? covered / span : 0.0}};
   }
   j["dropped"] = {{"events_outside_sensor", st.events_outside},
                   {"events_out_of_order", st.events_out_of_order},

@@ -1,4 +1,3 @@
-#include "vwe_vo/io/files.h"
 #include "vwe_vo/ros/backend_node.h"
 
 #include <geometry_msgs/TransformStamped.h>
@@ -9,6 +8,7 @@
 #include <stdexcept>
 
 #include "vwe_vo/SplineTrajectory.h"
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/param_loader.h"
@@ -76,7 +76,8 @@ void BackendNode::readParameters() {
   input_.setBound(InputKind::kEvents, size_t(o.max_queue_events));
   input_.setBound(InputKind::kArc, size_t(o.max_queue_messages));
   if (!o.calibration_path.empty()) {
-    input_.setCalibration(loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
+    input_.setCalibration(
+        loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
   }
   const BackendOptions& b = backend_options_;
   ROS_INFO(
@@ -86,7 +87,8 @@ void BackendNode::readParameters() {
       o.config_path.c_str(),
       o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(), b.degree,
       b.knot_spacing_s, b.window_s, b.update_interval_s, b.tau1_s, b.tau2_s,
-      b.max_events_per_volume, contrastName(b.volume.contrast), b.max_iterations, o.odom_rate_hz, o.max_gap_s, o.publish_tf);
+      b.max_events_per_volume, contrastName(b.volume.contrast), b.max_iterations, o.odom_rate_hz,
+      o.max_gap_s, o.publish_tf);
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -159,7 +161,9 @@ void BackendNode::workerLoop() {
   }
 }
 
-void BackendNode::resetBackend(const std::string& why) { driver_->reset(why); }
+void BackendNode::resetBackend(const std::string& why) {
+  driver_->reset(why);
+}
 
 void BackendNode::onReset(const std::string& why) {
   path_.poses.clear();
@@ -171,8 +175,7 @@ void BackendNode::handleEvents(const EventVector& events) {
   driver_->addEvents(events);
   const BackendStats& s = backend_->stats();
   if (s.events_out_of_order > reported_out_of_order_) {
-    ROS_WARN_THROTTLE(10,
-                      "backend_node: %zu events older than the newest one dropped (%zu so far)",
+    ROS_WARN_THROTTLE(10, "backend_node: %zu events older than the newest one dropped (%zu so far)",
                       s.events_out_of_order - reported_out_of_order_, s.events_out_of_order);
     reported_out_of_order_ = s.events_out_of_order;
   }
@@ -183,19 +186,23 @@ void BackendNode::handleArc(const ArcEstimate& arc, int64_t newest_pending_arc_n
   driver_->addArc(arc, newest_pending_arc_ns);
   const BackendDriverStats& s = driver_->stats();
   if (s.arcs_stale > before.arcs_stale)
-    ROS_WARN_THROTTLE(10, "backend_node: arc ending at %.3f s is not newer than the newest arc: ignored (%zu so far)",
-                      nsToSec(arc.t_end_ns), s.arcs_stale);
+    ROS_WARN_THROTTLE(
+        10,
+        "backend_node: arc ending at %.3f s is not newer than the newest arc: ignored (%zu so far)",
+        nsToSec(arc.t_end_ns), s.arcs_stale);
   if (s.arcs_lost > before.arcs_lost)
-    ROS_WARN_THROTTLE(10, "backend_node: arc at %.3f s is %s: the last good yaw rate and speed "
-                          "are held through it (%zu so far)",
+    ROS_WARN_THROTTLE(10,
+                      "backend_node: arc at %.3f s is %s: the last good yaw rate and speed "
+                      "are held through it (%zu so far)",
                       nsToSec(arc.t_ref_ns), toString(arc.status), s.arcs_lost);
 }
 
 void BackendNode::publishRefinement(size_t merged) {
   ++refinements_;
   if (merged > 0)
-    ROS_WARN_THROTTLE(10, "backend_node: behind: one refinement over %zu update intervals (%zu merged so far)",
-                      merged + 1, driver_->stats().refinements_merged);
+    ROS_WARN_THROTTLE(
+        10, "backend_node: behind: one refinement over %zu update intervals (%zu merged so far)",
+        merged + 1, driver_->stats().refinements_merged);
   if (!backend_->hasSpline()) return;
   const BSpline& spline = backend_->spline();
   trajectory_pub_.publish(splineToMsg(spline, backend_->firstFree(), frames::kOdom));

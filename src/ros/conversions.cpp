@@ -7,10 +7,13 @@
 
 namespace vwe_vo {
 
-int64_t toNs(const ros::Time& t) { return int64_t(t.sec) * kNsPerSec + int64_t(t.nsec); }
+int64_t toNs(const ros::Time& t) {
+  return int64_t(t.sec) * kNsPerSec + int64_t(t.nsec);
+}
 
 ros::Time toRosTime(int64_t t_ns) {
-  if (t_ns < 0) throw std::invalid_argument("toRosTime: negative time " + std::to_string(t_ns) + " ns");
+  if (t_ns < 0)
+    throw std::invalid_argument("toRosTime: negative time " + std::to_string(t_ns) + " ns");
   ros::Time t;
   t.fromNSec(uint64_t(t_ns));
   return t;
@@ -51,8 +54,9 @@ void eventsToMsg(const EventVector& events, EventArray* msg) {
 EventArray eventsToMsg(const EventVector& events, size_t begin, size_t end, int width, int height,
                        const std::string& frame_id, int64_t epoch_ns, int64_t stamp_ns) {
   if (begin > end || end > events.size())
-    throw std::invalid_argument("eventsToMsg: range [" + std::to_string(begin) + ", " + std::to_string(end) +
-                                ") outside " + std::to_string(events.size()) + " events");
+    throw std::invalid_argument("eventsToMsg: range [" + std::to_string(begin) + ", " +
+                                std::to_string(end) + ") outside " + std::to_string(events.size()) +
+                                " events");
   EventArray msg;
   msg.header.frame_id = frame_id;
   msg.width = uint32_t(width);
@@ -79,8 +83,11 @@ CameraCalibration calibrationFromMsg(const sensor_msgs::CameraInfo& msg) {
   c.fy = msg.K[4];
   c.cy = msg.K[5];
   if (!msg.D.empty() && msg.distortion_model != "plumb_bob" && msg.distortion_model != "radtan")
-    throw std::invalid_argument("CameraInfo: distortion_model '" + msg.distortion_model + "' is not supported (plumb_bob)");
-  if (msg.D.size() > 5) throw std::invalid_argument("CameraInfo: D has " + std::to_string(msg.D.size()) + " values, plumb_bob has 5");
+    throw std::invalid_argument("CameraInfo: distortion_model '" + msg.distortion_model +
+                                "' is not supported (plumb_bob)");
+  if (msg.D.size() > 5)
+    throw std::invalid_argument("CameraInfo: D has " + std::to_string(msg.D.size()) +
+                                " values, plumb_bob has 5");
   for (size_t i = 0; i < msg.D.size(); ++i) c.distortion[i] = msg.D[i];
   c.validate();
   return c;
@@ -194,15 +201,18 @@ cv::Mat imageFromMsg(const sensor_msgs::Image& msg) {
   if (msg.encoding != "mono8" && msg.encoding != "8UC1")
     throw std::invalid_argument("image encoding '" + msg.encoding + "' is not mono8");
   if (msg.step < msg.width || msg.data.size() < static_cast<size_t>(msg.step) * msg.height)
-    throw std::invalid_argument("image " + std::to_string(msg.width) + "x" + std::to_string(msg.height) + " with step " +
-                                std::to_string(msg.step) + " has only " + std::to_string(msg.data.size()) + " bytes");
-  const cv::Mat view(msg.height, msg.width, CV_8UC1, const_cast<uint8_t*>(msg.data.data()), msg.step);
+    throw std::invalid_argument(
+        "image " + std::to_string(msg.width) + "x" + std::to_string(msg.height) + " with step " +
+        std::to_string(msg.step) + " has only " + std::to_string(msg.data.size()) + " bytes");
+  const cv::Mat view(msg.height, msg.width, CV_8UC1, const_cast<uint8_t*>(msg.data.data()),
+                     msg.step);
   return view.clone();
 }
 
 sensor_msgs::Image imageToMsg(const cv::Mat& image, int64_t t_ns, const std::string& frame_id) {
   if (image.type() != CV_8UC1 && image.type() != CV_8UC3)
-    throw std::invalid_argument("imageToMsg: only 8-bit mono or BGR images (type " + std::to_string(image.type()) + ")");
+    throw std::invalid_argument("imageToMsg: only 8-bit mono or BGR images (type " +
+                                std::to_string(image.type()) + ")");
   sensor_msgs::Image m;
   m.header.stamp = toRosTime(t_ns);
   m.header.frame_id = frame_id;
@@ -240,7 +250,8 @@ SplineTrajectory splineToMsg(const BSpline& spline, int first_free, const std::s
 BSpline splineFromMsg(const SplineTrajectory& msg) {
   auto fail = [](const std::string& m) { throw std::invalid_argument("SplineTrajectory: " + m); };
   if (msg.degree < 1 || msg.degree > kBSplineMaxDegree)
-    fail("degree " + std::to_string(msg.degree) + " outside [1, " + std::to_string(kBSplineMaxDegree) + "]");
+    fail("degree " + std::to_string(msg.degree) + " outside [1, " +
+         std::to_string(kBSplineMaxDegree) + "]");
   if (msg.control_x.size() != msg.control_y.size())
     fail("control_x has " + std::to_string(msg.control_x.size()) + " entries but control_y " +
          std::to_string(msg.control_y.size()));
@@ -253,7 +264,8 @@ BSpline splineFromMsg(const SplineTrajectory& msg) {
          " spline needs at least " + std::to_string(msg.degree + 1));
   if (msg.knots.size() != n + msg.degree + 1)
     fail("knots has " + std::to_string(msg.knots.size()) + " entries, " + std::to_string(n) +
-         " control points of degree " + std::to_string(msg.degree) + " need " + std::to_string(n + msg.degree + 1));
+         " control points of degree " + std::to_string(msg.degree) + " need " +
+         std::to_string(n + msg.degree + 1));
   for (size_t i = 0; i < msg.knots.size(); ++i)
     if (!std::isfinite(msg.knots[i])) fail("knots[" + std::to_string(i) + "] is not finite");
   std::vector<Vec2> control_points(n);
@@ -278,8 +290,8 @@ BSpline splineFromMsg(const SplineTrajectory& msg) {
   return BSpline();  // not reached
 }
 
-sensor_msgs::PointCloud2 cloudToMsg(const std::vector<MapPoint>& points, const std::string& frame_id,
-                                    int64_t stamp_ns) {
+sensor_msgs::PointCloud2 cloudToMsg(const std::vector<MapPoint>& points,
+                                    const std::string& frame_id, int64_t stamp_ns) {
   sensor_msgs::PointCloud2 msg;
   msg.header.frame_id = frame_id;
   msg.header.stamp = toRosTime(std::max<int64_t>(0, stamp_ns));

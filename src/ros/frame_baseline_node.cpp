@@ -1,10 +1,10 @@
-#include "vwe_vo/io/files.h"
 #include "vwe_vo/ros/frame_baseline_node.h"
 
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
 
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/param_loader.h"
@@ -13,21 +13,27 @@
 namespace vwe_vo {
 
 void FrameBaselineNodeOptions::validate() const {
-  auto fail = [](const std::string& m) { throw std::invalid_argument("frame_baseline_node: " + m); };
+  auto fail = [](const std::string& m) {
+    throw std::invalid_argument("frame_baseline_node: " + m);
+  };
   if (max_queue_frames < 1) fail("~max_queue_frames must be at least 1");
   if (max_queue_messages < 1) fail("~max_queue_messages must be at least 1");
   if (!std::isfinite(nominal_speed_mps)) fail("~nominal_speed must be finite [m/s]");
 }
 
-FrameBaselineNode::FrameBaselineNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh) : nh_(nh), pnh_(pnh) {
+FrameBaselineNode::FrameBaselineNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
+    : nh_(nh), pnh_(pnh) {
   readParameters();
   image_sub_ = nh_.subscribe(topics::kImageRaw, 5, &FrameBaselineNode::imageCallback, this);
-  camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &FrameBaselineNode::cameraInfoCallback, this);
-  if (node_options_.use_odom) odom_sub_ = nh_.subscribe(topics::kOdom, 200, &FrameBaselineNode::odomCallback, this);
+  camera_info_sub_ =
+      nh_.subscribe(topics::kCameraInfo, 2, &FrameBaselineNode::cameraInfoCallback, this);
+  if (node_options_.use_odom)
+    odom_sub_ = nh_.subscribe(topics::kOdom, 200, &FrameBaselineNode::odomCallback, this);
   odom_pub_ = nh_.advertise<nav_msgs::Odometry>(topics::kBaselineOdom, 100);
   tracks_pub_ = nh_.advertise<sensor_msgs::Image>(topics::kBaselineTracks, 2);
   if (!input_.hasCalibration())
-    ROS_INFO("frame_baseline_node: waiting for %s (no ~calibration given)", camera_info_sub_.getTopic().c_str());
+    ROS_INFO("frame_baseline_node: waiting for %s (no ~calibration given)",
+             camera_info_sub_.getTopic().c_str());
   worker_ = std::thread(&FrameBaselineNode::workerLoop, this);
 }
 
@@ -58,15 +64,18 @@ void FrameBaselineNode::readParameters() {
   input_.setBound(InputKind::kFrame, size_t(o.max_queue_frames), Overflow::kDropOldest);
   input_.setBound(InputKind::kOdometry, size_t(o.max_queue_messages));
   if (!o.calibration_path.empty()) {
-    input_.setCalibration(loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
+    input_.setCalibration(
+        loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
   }
   const FrameBaselineOptions& b = baseline_options_;
   ROS_INFO(
-      "frame_baseline_node: config %s, calibration %s, nominal_speed %.3f m/s, use_odom %d, %d features, KLT %d px "
+      "frame_baseline_node: config %s, calibration %s, nominal_speed %.3f m/s, use_odom %d, %d "
+      "features, KLT %d px "
       "x %d levels, inliers within %.2f px, LOST below %d tracks",
-      o.config_path.c_str(), o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(),
-      b.nominal_speed_mps, o.use_odom, b.max_features, b.klt_window_px, b.klt_levels, b.inlier_threshold_px,
-      b.min_tracks);
+      o.config_path.c_str(),
+      o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(),
+      b.nominal_speed_mps, o.use_odom, b.max_features, b.klt_window_px, b.klt_levels,
+      b.inlier_threshold_px, b.min_tracks);
 }
 
 void FrameBaselineNode::imageCallback(const sensor_msgs::Image::ConstPtr& msg) {
@@ -133,14 +142,17 @@ void FrameBaselineNode::handleFrame(const Input& input) {
   // Losing track is said when it happens (throttled to 1 s), staying lost every 5 s.
   if (e.status == FrameStatus::kLost) {
     if (last_status_ != FrameStatus::kLost)
-      ROS_WARN_THROTTLE(1, "frame_baseline_node: LOST at %.3f s: %s (%zu of %zu frames lost)", nsToSec(e.t_ns),
-                        e.reason.c_str(), baseline_->stats().lost, baseline_->stats().frames);
+      ROS_WARN_THROTTLE(1, "frame_baseline_node: LOST at %.3f s: %s (%zu of %zu frames lost)",
+                        nsToSec(e.t_ns), e.reason.c_str(), baseline_->stats().lost,
+                        baseline_->stats().frames);
     else
-      ROS_WARN_THROTTLE(5, "frame_baseline_node: still LOST at %.3f s: %s (%zu of %zu frames lost)", nsToSec(e.t_ns),
-                        e.reason.c_str(), baseline_->stats().lost, baseline_->stats().frames);
+      ROS_WARN_THROTTLE(5, "frame_baseline_node: still LOST at %.3f s: %s (%zu of %zu frames lost)",
+                        nsToSec(e.t_ns), e.reason.c_str(), baseline_->stats().lost,
+                        baseline_->stats().frames);
   }
   last_status_ = e.status;
-  if (e.status == FrameStatus::kOk || e.status == FrameStatus::kStandstill || e.status == FrameStatus::kFirst) {
+  if (e.status == FrameStatus::kOk || e.status == FrameStatus::kStandstill ||
+      e.status == FrameStatus::kFirst) {
     nav_msgs::Odometry odom;
     odom.header.stamp = toRosTime(e.t_ns);
     odom.header.frame_id = frames::kOdom;

@@ -1,4 +1,3 @@
-#include "vwe_vo/io/files.h"
 #include "vwe_vo/ros/frontend_node.h"
 
 #include <sensor_msgs/Image.h>
@@ -8,12 +7,13 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/io/options_yaml.h"
-#include "vwe_vo/vwe/vwe_objective.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/param_loader.h"
 #include "vwe_vo/ros/topics.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/vwe/vwe_objective.h"
 
 namespace vwe_vo {
 
@@ -91,10 +91,14 @@ void FrontendNode::readParameters() {
   if (o.nominal_speed_mps >= 0) frontend_options_.nominal_speed_mps = o.nominal_speed_mps;
   frontend_options_.validate();
   if (frontend_options_.use_gyro_prior && !o.use_imu)
-    ROS_WARN("frontend_node: the config's use_gyro_prior needs use_imu:=true (/dvs/imu); scanning without it");
+    ROS_WARN(
+        "frontend_node: the config's use_gyro_prior needs use_imu:=true (/dvs/imu); scanning "
+        "without it");
   if (frontend_options_.one_sided.balance > 0 && !o.use_imu)
-    ROS_INFO("frontend_node: one-sided windows predict their depth from the previous arc (use_imu:=true: from the gyro, "
-             "more reliable at the start of a turn)");
+    ROS_INFO(
+        "frontend_node: one-sided windows predict their depth from the previous arc "
+        "(use_imu:=true: from the gyro, "
+        "more reliable at the start of a turn)");
   T_base_cam_ = config.T_base_cam;
 
   input_.setBound(InputKind::kEvents, size_t(o.max_queue_events));
@@ -102,13 +106,15 @@ void FrontendNode::readParameters() {
   input_.setBound(InputKind::kImu, size_t(o.max_queue_messages));
   input_.setBound(InputKind::kTrajectory, size_t(o.max_queue_messages));
   if (!o.calibration_path.empty()) {
-    input_.setCalibration(loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
+    input_.setCalibration(
+        loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
   }
 
   const FrontendOptions& f = frontend_options_;
-  ROS_INFO("frontend_node: config %s, calibration %s, nominal_speed %.3f m/s%s", o.config_path.c_str(),
-           o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(), f.nominal_speed_mps,
-           o.nominal_speed_mps >= 0 ? " (~nominal_speed)" : " (config)");
+  ROS_INFO("frontend_node: config %s, calibration %s, nominal_speed %.3f m/s%s",
+           o.config_path.c_str(),
+           o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(),
+           f.nominal_speed_mps, o.nominal_speed_mps >= 0 ? " (~nominal_speed)" : " (config)");
   ROS_INFO(
       "frontend_node: windows of %s, %zu events per volume, %d planes in [%.2f, %.2f] m at grid "
       "scale %.2f, contrast %s, "
@@ -117,8 +123,8 @@ void FrontendNode::readParameters() {
           ? (std::to_string(f.window_events) + " events").c_str()
           : (std::to_string(int(std::lround(f.window_duration_s * 1000))) + " ms").c_str(),
       f.max_events_per_volume, f.volume.num_planes, f.volume.z_min_m, f.volume.z_max_m,
-      f.volume.grid_scale, contrastName(f.volume.contrast), f.scan_half_range_rad_s, f.omega_max_rad_s, f.standstill_event_rate_hz,
-      f.use_gyro_prior);
+      f.volume.grid_scale, contrastName(f.volume.contrast), f.scan_half_range_rad_s,
+      f.omega_max_rad_s, f.standstill_event_rate_hz, f.use_gyro_prior);
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -269,8 +275,10 @@ void FrontendNode::handleEvents(const EventVector& events) {
 
 void FrontendNode::handleTrajectory(const BSpline& spline) {
   if (!follower_.follow(spline, newest_event_ns_, frontend_.get())) return;
-  ROS_INFO_THROTTLE(10, "frontend_node: re-anchored on the back-end's spline at %.3f s, speed %.3f m/s (%zu so far)",
-                    nsToSec(follower_.lastTime()), follower_.lastSpeed(), follower_.reanchors());
+  ROS_INFO_THROTTLE(
+      10,
+      "frontend_node: re-anchored on the back-end's spline at %.3f s, speed %.3f m/s (%zu so far)",
+      nsToSec(follower_.lastTime()), follower_.lastSpeed(), follower_.reanchors());
 }
 
 void FrontendNode::publishArc(const ArcEstimate& arc) {
@@ -334,10 +342,13 @@ void FrontendNode::logStatus() {
   const double wall_s = std::max(1e-6, (now - last_status_).toSec());
   const FrontendStats& s = frontend_->stats();
   ROS_INFO(
-      "frontend_node: %zu windows (%zu split in two) (%zu one-sided, %zu one-sided but near) -> %zu arcs (%zu ok, %zu standstill, %zu lost, %zu "
+      "frontend_node: %zu windows (%zu split in two) (%zu one-sided, %zu one-sided but near) -> "
+      "%zu arcs (%zu ok, %zu standstill, %zu lost, %zu "
       "low events), %zu windows skipped behind; "
-      "%.0f events/s in, %zu outside the sensor, %zu late; %zu resets; real-time factor %.3f; input: %s",
-      s.windows, s.windows_split, s.windows_one_sided, s.windows_one_sided_near, windows_ok_ + windows_standstill_ + windows_lost_ + windows_low_, windows_ok_,
+      "%.0f events/s in, %zu outside the sensor, %zu late; %zu resets; real-time factor %.3f; "
+      "input: %s",
+      s.windows, s.windows_split, s.windows_one_sided, s.windows_one_sided_near,
+      windows_ok_ + windows_standstill_ + windows_lost_ + windows_low_, windows_ok_,
       windows_standstill_, windows_lost_, windows_low_, s.windows_dropped,
       double(s.events_in - last_status_events_) / wall_s,
       s.events_outside + input_.counters().events_outside, s.events_out_of_order, s.resets,

@@ -1,4 +1,3 @@
-#include "vwe_vo/io/files.h"
 #include "vwe_vo/ros/mapping_node.h"
 
 #include <sensor_msgs/Image.h>
@@ -9,6 +8,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/param_loader.h"
@@ -77,7 +77,8 @@ void MappingNode::readParameters() {
   input_.setBound(InputKind::kEvents, size_t(o.max_queue_events));
   input_.setBound(InputKind::kTrajectory, 1, Overflow::kReplaceOldest);
   if (!o.calibration_path.empty()) {
-    input_.setCalibration(loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
+    input_.setCalibration(
+        loadCameraCalibrationYaml(o.calibration_path));  // throws naming file and field
   }
 
   const EmvsOptions& e = emvs_options_;
@@ -88,8 +89,8 @@ void MappingNode::readParameters() {
       "%.2f] m at grid scale %.2f; %zu events may wait for the trajectory; at most %.0f events/s "
       "voted (0: all); global map voxel %.3f m, %zu points max",
       e.kf_distance_m, e.kf_rotation_deg, e.max_events_per_keyframe, e.volume.num_planes,
-      e.volume.z_min_m, e.volume.z_max_m, e.volume.grid_scale, e.max_pending_events, e.max_event_rate_hz,
-      global_map_options_.voxel_size_m, global_map_options_.max_points);
+      e.volume.z_min_m, e.volume.z_max_m, e.volume.grid_scale, e.max_pending_events,
+      e.max_event_rate_hz, global_map_options_.voxel_size_m, global_map_options_.max_points);
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -114,8 +115,8 @@ void MappingNode::trajectoryCallback(const SplineTrajectory::ConstPtr& msg) {
   } catch (const std::invalid_argument& e) {
     input_.countRefused(InputKind::kTrajectory);
     const InputKindCounters c = input_.counters()[InputKind::kTrajectory];
-    ROS_WARN_THROTTLE(5, "mapping_node: trajectory refused: %s (%zu of %zu refused so far)", e.what(), c.refused,
-                      c.in);
+    ROS_WARN_THROTTLE(5, "mapping_node: trajectory refused: %s (%zu of %zu refused so far)",
+                      e.what(), c.refused, c.in);
     return;
   }
   if (!msg->header.frame_id.empty() && msg->header.frame_id != frames::kOdom)
@@ -182,7 +183,8 @@ void MappingNode::handleEvents(const EventVector& events) {
   last_events_wall_ = ros::WallTime::now();
   int64_t oldest = events.front().t_ns;
   for (const PixelEvent& e : events) oldest = std::min(oldest, e.t_ns);
-  if (newest_event_ns_ >= 0 && oldest < newest_event_ns_ - secToNs(node_options_.max_backwards_jump_s)) {
+  if (newest_event_ns_ >= 0 &&
+      oldest < newest_event_ns_ - secToNs(node_options_.max_backwards_jump_s)) {
     ++resets_;
     ROS_WARN(
         "mapping_node: event time jumped back by %.3f s (%.3f -> %.3f s; a looped bag?): mapper, "
@@ -197,8 +199,7 @@ void MappingNode::handleEvents(const EventVector& events) {
   for (const PixelEvent& e : events) newest_event_ns_ = std::max(newest_event_ns_, e.t_ns);
   mapper_->addEvents(events);
   if (mapper_->droppedOutOfOrder() > reported_out_of_order_) {
-    ROS_WARN_THROTTLE(10,
-                      "mapping_node: %zu events older than the newest one dropped (%zu so far)",
+    ROS_WARN_THROTTLE(10, "mapping_node: %zu events older than the newest one dropped (%zu so far)",
                       mapper_->droppedOutOfOrder() - reported_out_of_order_,
                       mapper_->droppedOutOfOrder());
     reported_out_of_order_ = mapper_->droppedOutOfOrder();
@@ -227,8 +228,8 @@ void MappingNode::mapCovered() {
     return true;
   };
   // The end of the spline still moves with new data: only events before it are final.
-  const int64_t t_final_ns = spline->epochNs() + secToNs(spline->validTo()) -
-                             secToNs(node_options_.trajectory_margin_s);
+  const int64_t t_final_ns =
+      spline->epochNs() + secToNs(spline->validTo()) - secToNs(node_options_.trajectory_margin_s);
   for (const EmvsKeyframe& kf : mapper_->process(pose, t_final_ns)) handleKeyframe(kf);
 }
 
@@ -249,15 +250,14 @@ void MappingNode::handleKeyframe(const EmvsKeyframe& kf) {
     reported_skipped_time_ = counts_.skipped_time;
   }
   if (counts_.skipped_nan > reported_skipped_nan_) {
-    ROS_WARN_THROTTLE(10,
-                      "mapping_node: %zu events with a non-finite pose skipped (%zu so far)",
+    ROS_WARN_THROTTLE(10, "mapping_node: %zu events with a non-finite pose skipped (%zu so far)",
                       counts_.skipped_nan - reported_skipped_nan_, counts_.skipped_nan);
     reported_skipped_nan_ = counts_.skipped_nan;
   }
   if (depth_pub_.getNumSubscribers() > 0 && !kf.depth_m.empty())
     depth_pub_.publish(imageToMsg(
-        colorizeDepth(kf.depth_m, emvs_options_.volume.z_min_m, emvs_options_.volume.z_max_m), kf.t_kf_ns,
-        frames::kCamera));
+        colorizeDepth(kf.depth_m, emvs_options_.volume.z_min_m, emvs_options_.volume.z_max_m),
+        kf.t_kf_ns, frames::kCamera));
   if (kf.points_odom.empty()) {
     ++keyframes_empty_;
     ROS_WARN_THROTTLE(10,
@@ -273,18 +273,21 @@ void MappingNode::handleKeyframe(const EmvsKeyframe& kf) {
 
 void MappingNode::publishCloud() {
   map_changed_ = false;
-  cloud_pub_.publish(cloudToMsg(map_->points(), frames::kOdom, std::max<int64_t>(0, newest_event_ns_)));
+  cloud_pub_.publish(
+      cloudToMsg(map_->points(), frames::kOdom, std::max<int64_t>(0, newest_event_ns_)));
 }
 
 void MappingNode::logStatus() {
   const ros::WallTime now = ros::WallTime::now();
   ROS_INFO(
       "mapping_node: %zu keyframes (%zu empty), global map %zu points (%zu dropped); events: %zu "
-      "voted (%zu thinned to the rate limit), %zu waiting, %zu not covered by the trajectory, %zu non-finite pose, %zu late, %zu "
+      "voted (%zu thinned to the rate limit), %zu waiting, %zu not covered by the trajectory, %zu "
+      "non-finite pose, %zu late, %zu "
       "dropped waiting; %zu resets; busy %.1f s; input: %s",
-      keyframes_, keyframes_empty_, map_->size(), map_->dropped(), counts_.voted, mapper_->thinned(),
-      mapper_->pendingEvents(), counts_.skipped_time, counts_.skipped_nan,
-      mapper_->droppedOutOfOrder(), mapper_->droppedPending(), resets_, busy_wall_s_, input_.statusLine().c_str());
+      keyframes_, keyframes_empty_, map_->size(), map_->dropped(), counts_.voted,
+      mapper_->thinned(), mapper_->pendingEvents(), counts_.skipped_time, counts_.skipped_nan,
+      mapper_->droppedOutOfOrder(), mapper_->droppedPending(), resets_, busy_wall_s_,
+      input_.statusLine().c_str());
   last_status_ = now;
 }
 

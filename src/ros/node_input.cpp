@@ -36,7 +36,9 @@ NodeInputBase::NodeInputBase(std::string node) : node_(std::move(node)) {
 }
 
 void NodeInputBase::setBound(InputKind kind, size_t bound, Overflow overflow) {
-  if (bound < 1) throw std::invalid_argument(node_ + ": the input bound of " + inputKindName(kind) + " must be >= 1");
+  if (bound < 1)
+    throw std::invalid_argument(node_ + ": the input bound of " + inputKindName(kind) +
+                                " must be >= 1");
   std::lock_guard<std::mutex> lock(mutex_);
   bound_[size_t(kind)] = bound;
   overflow_[size_t(kind)] = overflow;
@@ -55,11 +57,12 @@ bool NodeInputBase::acceptCameraInfo(const sensor_msgs::CameraInfo& msg) {
   if (have_calibration_) {
     if (int(msg.width) != calibration_.width || int(msg.height) != calibration_.height) {
       ++counters_.camera_info_refused;
-      ROS_ERROR_THROTTLE(10,
-                         "%s: camera_info is %ux%u but the calibration in use is %dx%d: refused, keeping the "
-                         "first (%zu refused so far)",
-                         node_.c_str(), msg.width, msg.height, calibration_.width, calibration_.height,
-                         counters_.camera_info_refused);
+      ROS_ERROR_THROTTLE(
+          10,
+          "%s: camera_info is %ux%u but the calibration in use is %dx%d: refused, keeping the "
+          "first (%zu refused so far)",
+          node_.c_str(), msg.width, msg.height, calibration_.width, calibration_.height,
+          counters_.camera_info_refused);
     }
     return false;
   }
@@ -67,17 +70,19 @@ bool NodeInputBase::acceptCameraInfo(const sensor_msgs::CameraInfo& msg) {
     calibration_ = calibrationFromMsg(msg);
   } catch (const std::invalid_argument& e) {
     ++counters_.camera_info_refused;
-    ROS_WARN_THROTTLE(5, "%s: camera_info refused: %s; still waiting for a valid one (%zu refused so far)",
-                      node_.c_str(), e.what(), counters_.camera_info_refused);
+    ROS_WARN_THROTTLE(
+        5, "%s: camera_info refused: %s; still waiting for a valid one (%zu refused so far)",
+        node_.c_str(), e.what(), counters_.camera_info_refused);
     return false;
   }
   have_calibration_ = true;
-  ROS_INFO("%s: calibration from camera_info: %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f", node_.c_str(),
-           calibration_.width, calibration_.height, calibration_.fx, calibration_.fy, calibration_.cx,
-           calibration_.cy);
+  ROS_INFO("%s: calibration from camera_info: %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f",
+           node_.c_str(), calibration_.width, calibration_.height, calibration_.fx, calibration_.fy,
+           calibration_.cx, calibration_.cy);
   size_t before = 0;
   for (const InputKindCounters& k : counters_.kinds) before += k.before_calibration;
-  if (before > 0) ROS_INFO("%s: %zu inputs before the calibration were ignored", node_.c_str(), before);
+  if (before > 0)
+    ROS_INFO("%s: %zu inputs before the calibration were ignored", node_.c_str(), before);
   cv_.notify_all();
   return true;
 }
@@ -98,10 +103,11 @@ bool NodeInputBase::acceptEventPacket(const EventArray& msg, EventVector* events
     const uint64_t gap = packet_sequence_.observe(msg.header.seq);
     if (gap > 0) {
       counters_.packets_lost += gap;
-      ROS_WARN_THROTTLE(10,
-                        "%s: %lu event packets never reached the node (gap in header.seq before %u: the "
-                        "subscriber queue overflowed, the node is too slow for the data); %zu lost so far",
-                        node_.c_str(), static_cast<unsigned long>(gap), msg.header.seq, counters_.packets_lost);
+      ROS_WARN_THROTTLE(
+          10,
+          "%s: %lu event packets never reached the node (gap in header.seq before %u: the "
+          "subscriber queue overflowed, the node is too slow for the data); %zu lost so far",
+          node_.c_str(), static_cast<unsigned long>(gap), msg.header.seq, counters_.packets_lost);
     }
     if (!have_calibration_) {
       ++c.before_calibration;
@@ -110,7 +116,8 @@ bool NodeInputBase::acceptEventPacket(const EventArray& msg, EventVector* events
     if (msg.events.empty()) {
       ++c.refused;
       ++counters_.packets_empty;
-      ROS_WARN_THROTTLE(10, "%s: empty EventArray ignored (%zu so far)", node_.c_str(), counters_.packets_empty);
+      ROS_WARN_THROTTLE(10, "%s: empty EventArray ignored (%zu so far)", node_.c_str(),
+                        counters_.packets_empty);
       return false;
     }
     width = calibration_.width;
@@ -118,8 +125,9 @@ bool NodeInputBase::acceptEventPacket(const EventArray& msg, EventVector* events
     if (int(msg.width) != width || int(msg.height) != height) {
       ++c.refused;
       ++counters_.packets_wrong_size;
-      ROS_ERROR_THROTTLE(5, "%s: EventArray is %ux%u but the calibration is %dx%d: packet refused (%zu so far)",
-                         node_.c_str(), msg.width, msg.height, width, height, counters_.packets_wrong_size);
+      ROS_ERROR_THROTTLE(
+          5, "%s: EventArray is %ux%u but the calibration is %dx%d: packet refused (%zu so far)",
+          node_.c_str(), msg.width, msg.height, width, height, counters_.packets_wrong_size);
       return false;
     }
   }
@@ -133,8 +141,8 @@ bool NodeInputBase::acceptEventPacket(const EventArray& msg, EventVector* events
       counters_.events_outside += stats.dropped;
       outside = counters_.events_outside;
     }
-    ROS_WARN_THROTTLE(10, "%s: %zu events outside the %dx%d sensor dropped (%zu so far)", node_.c_str(),
-                      stats.dropped, width, height, outside);
+    ROS_WARN_THROTTLE(10, "%s: %zu events outside the %dx%d sensor dropped (%zu so far)",
+                      node_.c_str(), stats.dropped, width, height, outside);
   }
   return !events->empty();
 }
@@ -167,9 +175,10 @@ std::string NodeInputBase::statusLine() const {
     s << inputKindName(InputKind(k)) << " in=" << c.in;
     if (InputKind(k) == InputKind::kEvents)
       s << " lost=" << counters_.packets_lost << " empty=" << counters_.packets_empty
-        << " wrong_size=" << counters_.packets_wrong_size << " outside=" << counters_.events_outside;
-    s << " refused=" << c.refused << " before_calibration=" << c.before_calibration << " dropped=" << c.dropped
-      << "; ";
+        << " wrong_size=" << counters_.packets_wrong_size
+        << " outside=" << counters_.events_outside;
+    s << " refused=" << c.refused << " before_calibration=" << c.before_calibration
+      << " dropped=" << c.dropped << "; ";
   }
   s << "camera_info refused=" << counters_.camera_info_refused;
   return s.str();
@@ -217,11 +226,13 @@ void NodeInputBase::warnDropped(InputKind kind) {
   }
   const char* unit = kind == InputKind::kEvents ? "events" : "messages";
   if (overflow != Overflow::kRefuseNewest)
-    ROS_WARN_THROTTLE(5, "%s: %s queue full (%zu %s), the worker cannot keep up: oldest dropped (%zu so far)",
-                      node_.c_str(), inputKindName(kind), bound, unit, dropped);
+    ROS_WARN_THROTTLE(
+        5, "%s: %s queue full (%zu %s), the worker cannot keep up: oldest dropped (%zu so far)",
+        node_.c_str(), inputKindName(kind), bound, unit, dropped);
   else
-    ROS_WARN_THROTTLE(5, "%s: %s queue full (%zu %s), the worker cannot keep up: newest dropped (%zu so far)",
-                      node_.c_str(), inputKindName(kind), bound, unit, dropped);
+    ROS_WARN_THROTTLE(
+        5, "%s: %s queue full (%zu %s), the worker cannot keep up: newest dropped (%zu so far)",
+        node_.c_str(), inputKindName(kind), bound, unit, dropped);
 }
 
 }  // namespace vwe_vo

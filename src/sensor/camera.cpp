@@ -13,11 +13,13 @@ void require(bool ok, const std::string& msg) {
   if (!ok) throw std::invalid_argument("camera calibration: " + msg);
 }
 
-std::vector<double> readMatrixData(const YAML::Node& root, const std::string& key, const std::string& path) {
+std::vector<double> readMatrixData(const YAML::Node& root, const std::string& key,
+                                   const std::string& path) {
   const YAML::Node n = root[key];
   if (!n) throw std::runtime_error(path + ": missing field '" + key + "'");
   const YAML::Node data = n.IsMap() ? n["data"] : n;
-  if (!data || !data.IsSequence()) throw std::runtime_error(path + ": field '" + key + "' has no data list");
+  if (!data || !data.IsSequence())
+    throw std::runtime_error(path + ": field '" + key + "' has no data list");
   std::vector<double> v;
   for (const auto& e : data) v.push_back(e.as<double>());
   return v;
@@ -27,15 +29,21 @@ std::vector<double> readMatrixData(const YAML::Node& root, const std::string& ke
 
 void CameraCalibration::validate() const {
   require(width > 0 && height > 0 && width <= 4096 && height <= 4096,
-          "image size " + std::to_string(width) + "x" + std::to_string(height) + " is invalid (image_width/image_height)");
-  require(std::isfinite(fx) && fx > 0, "focal length fx = " + std::to_string(fx) + " must be finite and positive");
-  require(std::isfinite(fy) && fy > 0, "focal length fy = " + std::to_string(fy) + " must be finite and positive");
-  require(std::isfinite(cx) && cx >= 0 && cx <= width, "principal point cx = " + std::to_string(cx) + " is outside the image");
-  require(std::isfinite(cy) && cy >= 0 && cy <= height, "principal point cy = " + std::to_string(cy) + " is outside the image");
+          "image size " + std::to_string(width) + "x" + std::to_string(height) +
+              " is invalid (image_width/image_height)");
+  require(std::isfinite(fx) && fx > 0,
+          "focal length fx = " + std::to_string(fx) + " must be finite and positive");
+  require(std::isfinite(fy) && fy > 0,
+          "focal length fy = " + std::to_string(fy) + " must be finite and positive");
+  require(std::isfinite(cx) && cx >= 0 && cx <= width,
+          "principal point cx = " + std::to_string(cx) + " is outside the image");
+  require(std::isfinite(cy) && cy >= 0 && cy <= height,
+          "principal point cy = " + std::to_string(cy) + " is outside the image");
   const char* names[5] = {"k1", "k2", "p1", "p2", "k3"};
   for (int i = 0; i < 5; ++i)
     require(std::isfinite(distortion[i]) && std::abs(distortion[i]) < 100.0,
-            std::string("distortion coefficient ") + names[i] + " = " + std::to_string(distortion[i]) + " is not finite");
+            std::string("distortion coefficient ") + names[i] + " = " +
+                std::to_string(distortion[i]) + " is not finite");
 }
 
 CameraCalibration loadCameraCalibrationYaml(const std::string& path) {
@@ -53,17 +61,22 @@ CameraCalibration loadCameraCalibrationYaml(const std::string& path) {
     c.height = root["image_height"].as<int>();
     if (root["camera_name"]) c.camera_name = root["camera_name"].as<std::string>();
     const auto K = readMatrixData(root, "camera_matrix", path);
-    if (K.size() != 9) throw std::runtime_error(path + ": camera_matrix must have 9 values, has " + std::to_string(K.size()));
+    if (K.size() != 9)
+      throw std::runtime_error(path + ": camera_matrix must have 9 values, has " +
+                               std::to_string(K.size()));
     c.fx = K[0];
     c.cx = K[2];
     c.fy = K[4];
     c.cy = K[5];
-    const std::string model = root["distortion_model"] ? root["distortion_model"].as<std::string>() : "plumb_bob";
+    const std::string model =
+        root["distortion_model"] ? root["distortion_model"].as<std::string>() : "plumb_bob";
     if (model != "plumb_bob" && model != "radtan")
-      throw std::runtime_error(path + ": distortion_model '" + model + "' is not supported (use plumb_bob)");
+      throw std::runtime_error(path + ": distortion_model '" + model +
+                               "' is not supported (use plumb_bob)");
     if (root["distortion_coefficients"]) {
       const auto D = readMatrixData(root, "distortion_coefficients", path);
-      if (D.size() > 5) throw std::runtime_error(path + ": distortion_coefficients has more than 5 values");
+      if (D.size() > 5)
+        throw std::runtime_error(path + ": distortion_coefficients has more than 5 values");
       for (size_t i = 0; i < D.size(); ++i) c.distortion[i] = D[i];
     }
   } catch (const YAML::Exception& e) {
@@ -82,7 +95,8 @@ CameraModel::CameraModel(const CameraCalibration& calibration) : calib_(calibrat
   const int n = calib_.width * calib_.height;
   std::vector<cv::Point2f> pixels(n), undistorted;
   for (int y = 0; y < calib_.height; ++y)
-    for (int x = 0; x < calib_.width; ++x) pixels[y * calib_.width + x] = cv::Point2f(float(x), float(y));
+    for (int x = 0; x < calib_.width; ++x)
+      pixels[y * calib_.width + x] = cv::Point2f(float(x), float(y));
   const cv::Matx33d K(calib_.fx, 0, calib_.cx, 0, calib_.fy, calib_.cy, 0, 0, 1);
   const std::vector<double> D(calib_.distortion.begin(), calib_.distortion.end());
   // More iterations than OpenCV's default 5 so that strong lens corners round-trip to 1e-3 px.

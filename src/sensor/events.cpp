@@ -37,9 +37,13 @@ EventVector EventBuffer::windowByCount(int64_t t0_ns, size_t count) const {
   return EventVector(events_.begin() + i0, events_.begin() + i1);
 }
 
-void EventBuffer::dropBefore(int64_t t_ns) { events_.erase(events_.begin(), events_.begin() + lowerBound(t_ns)); }
+void EventBuffer::dropBefore(int64_t t_ns) {
+  events_.erase(events_.begin(), events_.begin() + lowerBound(t_ns));
+}
 
-void EventBuffer::clear() { events_.clear(); }
+void EventBuffer::clear() {
+  events_.clear();
+}
 
 uint64_t SequenceGapCounter::observe(uint32_t seq) {
   uint64_t gap = 0;

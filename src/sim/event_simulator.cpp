@@ -16,14 +16,16 @@ namespace {
 inline float fastLog(float x) {
   uint32_t bits;
   std::memcpy(&bits, &x, sizeof(bits));
-  // Subtracting the bits of sqrt(1/2) moves the exponent boundary so m lands in [sqrt(1/2), sqrt(2)).
+  // Subtracting the bits of sqrt(1/2) moves the exponent boundary so m lands in [sqrt(1/2),
+  // sqrt(2)).
   const uint32_t shifted = bits - 0x3f3504f3u;
   const int e = static_cast<int32_t>(shifted) >> 23;
   const uint32_t mbits = bits - (static_cast<uint32_t>(e) << 23);
   float m;
   std::memcpy(&m, &mbits, sizeof(m));
   const float s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
-  const float log_m = 2.0f * s * (1.0f + s2 * (1.0f / 3 + s2 * (1.0f / 5 + s2 * (1.0f / 7 + s2 * (1.0f / 9)))));
+  const float log_m =
+      2.0f * s * (1.0f + s2 * (1.0f / 3 + s2 * (1.0f / 5 + s2 * (1.0f / 7 + s2 * (1.0f / 9)))));
   return static_cast<float>(e) * 0.69314718f + log_m;
 }
 
@@ -37,40 +39,53 @@ inline Vf4 fastLog4(Vf4 x) {
   const Vi4 e = (Vi4)(bits - 0x3f3504f3u) >> 23;
   const Vf4 m = (Vf4)(bits - ((Vu4)e << 23));
   const Vf4 s = (m - 1.0f) / (m + 1.0f), s2 = s * s;
-  const Vf4 log_m = 2.0f * s * (1.0f + s2 * (1.0f / 3 + s2 * (1.0f / 5 + s2 * (1.0f / 7 + s2 * (1.0f / 9)))));
+  const Vf4 log_m =
+      2.0f * s * (1.0f + s2 * (1.0f / 3 + s2 * (1.0f / 5 + s2 * (1.0f / 7 + s2 * (1.0f / 9)))));
   return __builtin_convertvector(e, Vf4) * 0.69314718f + log_m;
 }
 }  // namespace
 
 void EventSimulatorOptions::validate() const {
   auto need = [](bool ok, const char* field, const char* what) {
-    if (!ok) throw std::invalid_argument(std::string("EventSimulatorOptions.") + field + " " + what);
+    if (!ok)
+      throw std::invalid_argument(std::string("EventSimulatorOptions.") + field + " " + what);
   };
-  need(contrast_threshold > 0.01 && contrast_threshold < 5, "contrast_threshold", "must be in (0.01, 5)");
-  need(threshold_sigma >= 0 && threshold_sigma < contrast_threshold, "threshold_sigma", "must be in [0, contrast_threshold)");
-  need(min_threshold > 0 && min_threshold <= contrast_threshold, "min_threshold", "must be in (0, contrast_threshold]");
+  need(contrast_threshold > 0.01 && contrast_threshold < 5, "contrast_threshold",
+       "must be in (0.01, 5)");
+  need(threshold_sigma >= 0 && threshold_sigma < contrast_threshold, "threshold_sigma",
+       "must be in [0, contrast_threshold)");
+  need(min_threshold > 0 && min_threshold <= contrast_threshold, "min_threshold",
+       "must be in (0, contrast_threshold]");
   need(refractory_s >= 0 && refractory_s < 1, "refractory_s", "must be in [0, 1)");
   need(noise_rate_hz >= 0 && noise_rate_hz < 1e4, "noise_rate_hz", "must be in [0, 1e4)");
   need(num_hot_pixels >= 0 && num_hot_pixels < 100000, "num_hot_pixels", "must be in [0, 1e5)");
-  need(hot_pixel_rate_hz >= 0 && hot_pixel_rate_hz < 1e5, "hot_pixel_rate_hz", "must be in [0, 1e5)");
+  need(hot_pixel_rate_hz >= 0 && hot_pixel_rate_hz < 1e5, "hot_pixel_rate_hz",
+       "must be in [0, 1e5)");
   need(log_eps > 0 && log_eps < 1, "log_eps", "must be in (0, 1)");
   need(supersampling >= 1 && supersampling <= 4, "supersampling", "must be in [1, 4]");
-  need(max_pixel_motion_px > 0.01 && max_pixel_motion_px <= 10, "max_pixel_motion_px", "must be in (0.01, 10]");
+  need(max_pixel_motion_px > 0.01 && max_pixel_motion_px <= 10, "max_pixel_motion_px",
+       "must be in (0.01, 10]");
   need(max_log_step > 0 && max_log_step <= 1, "max_log_step", "must be in (0, 1]");
   need(min_render_step_s >= 1e-6 && min_render_step_s <= max_render_step_s, "min_render_step_s",
        "must be in [1e-6, max_render_step_s]");
   need(max_render_step_s <= 0.1, "max_render_step_s", "must be <= 0.1");
   need(illumination_low > 0 && illumination_low <= 1, "illumination_low", "must be in (0, 1]");
   need(illumination_period_s > 0, "illumination_period_s", "must be > 0");
-  need(illumination_ramp_s > 0 && illumination_ramp_s < illumination_period_s, "illumination_ramp_s",
-       "must be in (0, illumination_period_s)");
-  need(dark_noise_rate_hz >= 0 && dark_noise_rate_hz < 1e4, "dark_noise_rate_hz", "must be in [0, 1e4)");
+  need(illumination_ramp_s > 0 && illumination_ramp_s < illumination_period_s,
+       "illumination_ramp_s", "must be in (0, illumination_period_s)");
+  need(dark_noise_rate_hz >= 0 && dark_noise_rate_hz < 1e4, "dark_noise_rate_hz",
+       "must be in [0, 1e4)");
   need(num_threads >= 1 && num_threads <= 64, "num_threads", "must be in [1, 64]");
 }
 
-EventSimulator::EventSimulator(const Scene& scene, const CameraModel& camera, const Pose3& T_base_cam,
-                               const VehicleTrajectory& trajectory, const EventSimulatorOptions& options)
-    : camera_(camera), scene_(scene), T_base_cam_(T_base_cam), trajectory_(trajectory), options_(options),
+EventSimulator::EventSimulator(const Scene& scene, const CameraModel& camera,
+                               const Pose3& T_base_cam, const VehicleTrajectory& trajectory,
+                               const EventSimulatorOptions& options)
+    : camera_(camera),
+      scene_(scene),
+      T_base_cam_(T_base_cam),
+      trajectory_(trajectory),
+      options_(options),
       noise_rng_(options.seed * 0x2545F4914F6CDD1DULL + 99) {
   options_.validate();
   renderer_ = std::make_unique<SceneRenderer>(scene_, camera_, options_.supersampling);
@@ -99,10 +114,12 @@ EventSimulator::EventSimulator(const Scene& scene, const CameraModel& camera, co
   renderer_->render(T_odom_cam(0), intensity_.data(), depth_.data(), pool_.get());
   const float log_illum = static_cast<float>(std::log(illumination(0)));
   for (size_t i = 0; i < n; ++i) {
-    log_prev_[i] = fastLog(std::exp(log_illum) * intensity_[i] + static_cast<float>(options_.log_eps));
+    log_prev_[i] =
+        fastLog(std::exp(log_illum) * intensity_[i] + static_cast<float>(options_.log_eps));
     log_ref_[i] = log_prev_[i];
   }
-  if (options_.supersampling > 1) depth_renderer_->render(T_odom_cam(0), nullptr, depth_.data(), pool_.get());
+  if (options_.supersampling > 1)
+    depth_renderer_->render(T_odom_cam(0), nullptr, depth_.data(), pool_.get());
   stats_.renders = 1;
   tiles_x_ = renderer_->numTileCols();
   tiles_y_ = renderer_->numTileRows();
@@ -122,10 +139,14 @@ double EventSimulator::illumination(int64_t t_ns) const {
   const double phase = std::fmod(std::max(0.0, nsToSec(t_ns)), 2.0 * P);
   // Fraction of the way to dark (0 bright, 1 dark), ramps at the end of each half period.
   double dark;
-  if (phase < P - R) dark = 0.0;
-  else if (phase < P) dark = (phase - (P - R)) / R;
-  else if (phase < 2 * P - R) dark = 1.0;
-  else dark = 1.0 - (phase - (2 * P - R)) / R;
+  if (phase < P - R)
+    dark = 0.0;
+  else if (phase < P)
+    dark = (phase - (P - R)) / R;
+  else if (phase < 2 * P - R)
+    dark = 1.0;
+  else
+    dark = 1.0 - (phase - (2 * P - R)) / R;
   dark = dark * dark * (3.0 - 2.0 * dark);
   // Exponential ramp: log illumination changes smoothly and at a bounded rate.
   return std::exp(dark * std::log(options_.illumination_low));
@@ -148,7 +169,8 @@ int64_t EventSimulator::planStep(int64_t t_ns) {
   const Eigen::AngleAxisd aa(T_c0_c1.linear());
   const Eigen::Vector3f w = (aa.axis() * aa.angle() / h).cast<float>();
   const Eigen::Vector3f v = (T_c0_c1.translation() / h).cast<float>();
-  const float px_per_rad = static_cast<float>(std::max(camera_.calibration().fx, camera_.calibration().fy));
+  const float px_per_rad =
+      static_cast<float>(std::max(camera_.calibration().fx, camera_.calibration().fy));
   // Per tile, the max over a grid of its pixels of the bearing's angular speed, in pixels.
   const int tile = SceneRenderer::kTile;
   std::vector<float> own(tile_allowed_ns_.size(), 0.f);
@@ -171,7 +193,8 @@ int64_t EventSimulator::planStep(int64_t t_ns) {
     for (int tx = 0; tx < tiles_x_; ++tx) {
       float r = 0.f;
       for (int j = std::max(0, ty - 1); j <= std::min(tiles_y_ - 1, ty + 1); ++j)
-        for (int i = std::max(0, tx - 1); i <= std::min(tiles_x_ - 1, tx + 1); ++i) r = std::max(r, own[j * tiles_x_ + i]);
+        for (int i = std::max(0, tx - 1); i <= std::min(tiles_x_ - 1, tx + 1); ++i)
+          r = std::max(r, own[j * tiles_x_ + i]);
       double allowed_s = options_.max_render_step_s;
       if (r > 0) allowed_s = std::min(allowed_s, options_.max_pixel_motion_px / r);
       if (log_rate_ > 0) allowed_s = std::min(allowed_s, options_.max_log_step / log_rate_);
@@ -195,7 +218,8 @@ void EventSimulator::processTileRow(int r, int thread, int64_t t1_ns, float log_
     const int64_t t0_ns = tile_t_ns_[k];
     tile_t_ns_[k] = t1_ns;
     const double span = static_cast<double>(t1_ns - t0_ns);
-    renderer_->renderTile(tx, r, intensity_.data(), options_.supersampling > 1 ? nullptr : depth_.data());
+    renderer_->renderTile(tx, r, intensity_.data(),
+                          options_.supersampling > 1 ? nullptr : depth_.data());
     if (options_.supersampling > 1) depth_renderer_->renderTile(tx, r, nullptr, depth_.data());
     const int x0 = tx * tile;
     const int y1 = std::min(height_, (r + 1) * tile), x1 = std::min(width_, x0 + tile);
@@ -249,7 +273,8 @@ void EventSimulator::processTileRow(int r, int thread, int64_t t1_ns, float log_
   thread_drops_[thread] += drops;
 }
 
-void EventSimulator::step(int64_t t0_ns, int64_t t1_ns, int64_t next_step_ns, bool flush, EventVector* out) {
+void EventSimulator::step(int64_t t0_ns, int64_t t1_ns, int64_t next_step_ns, bool flush,
+                          EventVector* out) {
   // A tile skipped now is next rendered one step later: render it now if by then it would be
   // past its deadline (moved more than max_pixel_motion_px, or seen too large an illumination
   // change, since its last render).
@@ -296,15 +321,17 @@ void EventSimulator::step(int64_t t0_ns, int64_t t1_ns, int64_t next_step_ns, bo
   const long count = mid_rate > 0 ? n_noise(noise_rng_) : 0;
   for (long i = 0; i < count; ++i) {
     const size_t p = where(noise_rng_);
-    out->push_back(PixelEvent{when(noise_rng_), static_cast<uint16_t>(p % width_), static_cast<uint16_t>(p / width_),
-                         static_cast<int8_t>(on(noise_rng_) ? 1 : -1)});
+    out->push_back(PixelEvent{when(noise_rng_), static_cast<uint16_t>(p % width_),
+                              static_cast<uint16_t>(p / width_),
+                              static_cast<int8_t>(on(noise_rng_) ? 1 : -1)});
   }
   if (!hot_pixels_.empty()) {
     std::poisson_distribution<long> n_hot(options_.hot_pixel_rate_hz * dt);
     for (int p : hot_pixels_) {
       const long k = n_hot(noise_rng_);
       for (long i = 0; i < k; ++i)
-        out->push_back(PixelEvent{when(noise_rng_), static_cast<uint16_t>(p % width_), static_cast<uint16_t>(p / width_), 1});
+        out->push_back(PixelEvent{when(noise_rng_), static_cast<uint16_t>(p % width_),
+                                  static_cast<uint16_t>(p / width_), 1});
     }
   }
   stats_.noise_events += out->size() - first - n_signal;
@@ -318,9 +345,11 @@ void EventSimulator::simulateUntil(int64_t t_end_ns, EventVector* out) {
     // Steps of a fraction of the fastest tile's interval, but never past a tile's deadline
     // (unless the step is at its lower bound).
     int64_t deadline = std::numeric_limits<int64_t>::max();
-    for (size_t k = 0; k < tile_t_ns_.size(); ++k) deadline = std::min(deadline, tile_t_ns_[k] + tile_allowed_ns_[k]);
+    for (size_t k = 0; k < tile_t_ns_.size(); ++k)
+      deadline = std::min(deadline, tile_t_ns_[k] + tile_allowed_ns_[k]);
     const int64_t min_step_ns = std::max<int64_t>(1000, secToNs(options_.min_render_step_s));
-    const int64_t t1 = std::min({t_end_ns, t_now_ns_ + step_ns, std::max(deadline, t_now_ns_ + min_step_ns)});
+    const int64_t t1 =
+        std::min({t_end_ns, t_now_ns_ + step_ns, std::max(deadline, t_now_ns_ + min_step_ns)});
     // The last step renders every tile, so no later event can precede t_end_ns.
     step(t_now_ns_, t1, step_ns, t1 == t_end_ns, out);
     t_now_ns_ = t1;
@@ -349,7 +378,8 @@ void EventSimulator::sortEvents(EventVector::iterator begin, EventVector::iterat
   const size_t n_buckets = std::max<size_t>(1, n / 8);
   const double scale = static_cast<double>(n_buckets) / (static_cast<double>(t_max - t_min) + 1.0);
   auto bucket = [&](const PixelEvent& e) {
-    return std::min(n_buckets - 1, static_cast<size_t>(static_cast<double>(e.t_ns - t_min) * scale));
+    return std::min(n_buckets - 1,
+                    static_cast<size_t>(static_cast<double>(e.t_ns - t_min) * scale));
   };
   sort_start_.assign(n_buckets + 1, 0);
   for (auto it = begin; it != end; ++it) ++sort_start_[bucket(*it) + 1];

@@ -1,24 +1,28 @@
+#include "vwe_vo/sim/frame_simulator.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
-#include "vwe_vo/sim/frame_simulator.h"
-
 namespace vwe_vo {
 namespace sim {
 
 void FrameSimulatorOptions::validate() const {
-  auto fail = [](const std::string& m) { throw std::invalid_argument("FrameSimulatorOptions." + m); };
+  auto fail = [](const std::string& m) {
+    throw std::invalid_argument("FrameSimulatorOptions." + m);
+  };
   if (!(rate_hz > 0 && rate_hz <= 1000)) fail("rate_hz must be in (0, 1000] [Hz]");
   if (!(exposure_min_s > 0)) fail("exposure_min_s must be positive [s]");
   if (!(exposure_max_s >= exposure_min_s)) fail("exposure_max_s must be >= exposure_min_s [s]");
-  if (!(exposure_max_s <= 1.0 / rate_hz)) fail("exposure_max_s must not exceed the frame period [s]");
+  if (!(exposure_max_s <= 1.0 / rate_hz))
+    fail("exposure_max_s must not exceed the frame period [s]");
   if (!(exposure_s >= exposure_min_s && exposure_s <= exposure_max_s))
     fail("exposure_s must be in [exposure_min_s, exposure_max_s] [s]");
   if (!(ae_target > 0 && ae_target < 1)) fail("ae_target must be in (0, 1)");
-  if (!(ae_trim_fraction >= 0 && ae_trim_fraction < 0.5)) fail("ae_trim_fraction must be in [0, 0.5)");
+  if (!(ae_trim_fraction >= 0 && ae_trim_fraction < 0.5))
+    fail("ae_trim_fraction must be in [0, 0.5)");
   if (!(ae_time_constant_s >= 0)) fail("ae_time_constant_s must be >= 0 [s]");
   if (ae_delay_frames < 0 || ae_delay_frames > 10) fail("ae_delay_frames must be in [0, 10]");
   if (!(saturation_exposure_s > 0)) fail("saturation_exposure_s must be positive [s]");
@@ -26,7 +30,8 @@ void FrameSimulatorOptions::validate() const {
   if (!(read_noise_e >= 0)) fail("read_noise_e must be >= 0 [e-]");
   if (!(prnu >= 0 && prnu < 0.5)) fail("prnu must be in [0, 0.5)");
   if (!(dsnu_dn >= 0)) fail("dsnu_dn must be >= 0 [DN]");
-  if (!(black_level_dn >= 0 && black_level_dn < 255)) fail("black_level_dn must be in [0, 255) [DN]");
+  if (!(black_level_dn >= 0 && black_level_dn < 255))
+    fail("black_level_dn must be in [0, 255) [DN]");
   if (!(blur_step_s > 0)) fail("blur_step_s must be positive [s]");
   if (max_blur_renders < 1) fail("max_blur_renders must be >= 1");
 }
@@ -93,14 +98,16 @@ SimulatedFrame FrameSimulator::renderWithExposure(int64_t t_ns, double exposure_
   f.image.create(cam.height(), cam.width());
   // Electrons: white at full light fills the well in saturation_exposure_s. Output: the well maps
   // to 255 DN above the black level's offset, 8 bits, clipped.
-  const double electrons_per_unit = exposure_s / options_.saturation_exposure_s * options_.full_well_e;
+  const double electrons_per_unit =
+      exposure_s / options_.saturation_exposure_s * options_.full_well_e;
   const double dn_per_electron = 255.0 / options_.full_well_e;
   const double read_dn = options_.read_noise_e * dn_per_electron;
   std::normal_distribution<double> n01(0.0, 1.0);
   size_t saturated = 0;
   for (int y = 0; y < f.image.rows; ++y)
     for (int x = 0; x < f.image.cols; ++x) {
-      const double e = std::max(0.0, static_cast<double>(irradiance(y, x) * gain_(y, x))) * electrons_per_unit;
+      const double e =
+          std::max(0.0, static_cast<double>(irradiance(y, x) * gain_(y, x))) * electrons_per_unit;
       // Shot noise (Gaussian approximation of Poisson), then the well clips.
       const double e_noisy = std::clamp(e + std::sqrt(e) * n01(rng_), 0.0, options_.full_well_e);
       const double dn = offset_(y, x) + e_noisy * dn_per_electron + read_dn * n01(rng_);
@@ -112,7 +119,9 @@ SimulatedFrame FrameSimulator::renderWithExposure(int64_t t_ns, double exposure_
   return f;
 }
 
-SimulatedFrame FrameSimulator::render(int64_t t_ns) { return renderWithExposure(t_ns, exposure()); }
+SimulatedFrame FrameSimulator::render(int64_t t_ns) {
+  return renderWithExposure(t_ns, exposure());
+}
 
 std::vector<SimulatedFrame> FrameSimulator::simulateUntil(int64_t t_end_ns) {
   std::vector<SimulatedFrame> out;
@@ -132,7 +141,9 @@ std::vector<SimulatedFrame> FrameSimulator::simulateUntil(int64_t t_end_ns) {
       // ae_delay_frames frames later (the next exposure has already started).
       const double level = std::max(meteredLevel(out.back().image), 0.5 / 255.0);
       const double wanted = exposure_s * options_.ae_target / level;
-      const double a = options_.ae_time_constant_s > 0 ? 1.0 - std::exp(-period_s / options_.ae_time_constant_s) : 1.0;
+      const double a = options_.ae_time_constant_s > 0
+                           ? 1.0 - std::exp(-period_s / options_.ae_time_constant_s)
+                           : 1.0;
       next = std::exp(std::log(next) + a * (std::log(wanted) - std::log(next)));
       next = std::clamp(next, options_.exposure_min_s, options_.exposure_max_s);
     }

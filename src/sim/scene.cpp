@@ -14,13 +14,19 @@ namespace sim {
 
 namespace {
 // Surface axes (u, v) of a face with normal `axis`: v is z on vertical faces.
-inline int uAxis(int axis) { return axis == 0 ? 1 : 0; }
-inline int vAxis(int axis) { return axis == 2 ? 1 : 2; }
+inline int uAxis(int axis) {
+  return axis == 0 ? 1 : 0;
+}
+inline int vAxis(int axis) {
+  return axis == 2 ? 1 : 2;
+}
 }  // namespace
 
-size_t Scene::addRect(int axis, float plane, Eigen::Vector2f lo, Eigen::Vector2f hi, int texture, float gain, uint64_t seed) {
+size_t Scene::addRect(int axis, float plane, Eigen::Vector2f lo, Eigen::Vector2f hi, int texture,
+                      float gain, uint64_t seed) {
   if (axis < 0 || axis > 2) throw std::invalid_argument("Scene::addRect: axis must be 0, 1 or 2");
-  if (texture < 0 || texture >= static_cast<int>(textures.size())) throw std::invalid_argument("Scene::addRect: bad texture index");
+  if (texture < 0 || texture >= static_cast<int>(textures.size()))
+    throw std::invalid_argument("Scene::addRect: bad texture index");
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<float> off(0.f, 50.f);
   Face f;
@@ -38,7 +44,8 @@ size_t Scene::addRect(int axis, float plane, Eigen::Vector2f lo, Eigen::Vector2f
   return faces.size() - 1;
 }
 
-size_t Scene::addBox(const Eigen::Vector3f& mn, const Eigen::Vector3f& mx, int texture, float gain, uint64_t seed) {
+size_t Scene::addBox(const Eigen::Vector3f& mn, const Eigen::Vector3f& mx, int texture, float gain,
+                     uint64_t seed) {
   const size_t first = faces.size();
   // Side faces get slightly different gains (light from above and one side).
   const float side_gain[2][3] = {{0.85f, 0.75f, 0.6f}, {0.95f, 0.9f, 1.0f}};
@@ -47,15 +54,18 @@ size_t Scene::addBox(const Eigen::Vector3f& mn, const Eigen::Vector3f& mx, int t
     for (int side = 0; side < 2; ++side) {
       if (axis == 2 && side == 0) continue;  // bottom never seen
       const float plane = side ? mx[axis] : mn[axis];
-      const size_t f = addRect(axis, plane, Eigen::Vector2f(mn[ua], mn[va]), Eigen::Vector2f(mx[ua], mx[va]), texture,
-                               gain * side_gain[side][axis], seed * 7 + axis * 2 + side);
+      const size_t f =
+          addRect(axis, plane, Eigen::Vector2f(mn[ua], mn[va]), Eigen::Vector2f(mx[ua], mx[va]),
+                  texture, gain * side_gain[side][axis], seed * 7 + axis * 2 + side);
       faces[f].facing = side ? 1 : -1;
     }
   }
   return first;
 }
 
-std::vector<std::string> sceneKinds() { return {"indoor", "corridor", "street"}; }
+std::vector<std::string> sceneKinds() {
+  return {"indoor", "corridor", "street"};
+}
 
 namespace {
 
@@ -80,8 +90,10 @@ struct PathSamples {
   }
 };
 
-bool overlaps(const std::vector<Eigen::AlignedBox2d>& boxes, const Eigen::AlignedBox2d& b, double gap) {
-  Eigen::AlignedBox2d g(b.min() - Eigen::Vector2d::Constant(gap), b.max() + Eigen::Vector2d::Constant(gap));
+bool overlaps(const std::vector<Eigen::AlignedBox2d>& boxes, const Eigen::AlignedBox2d& b,
+              double gap) {
+  Eigen::AlignedBox2d g(b.min() - Eigen::Vector2d::Constant(gap),
+                        b.max() + Eigen::Vector2d::Constant(gap));
   for (const auto& o : boxes)
     if (g.intersects(o)) return true;
   return false;
@@ -95,17 +107,18 @@ int addTexture(Scene& s, TextureStyle style, int size, float texel, uint64_t see
   return static_cast<int>(s.textures.size()) - 1;
 }
 
-// Posters / doors / boards on a wall: rectangles 1 cm in front of wall `axis` = plane, facing `inward`.
-void addWallDecor(Scene& s, std::mt19937_64& rng, int axis, float plane, float inward, float u0, float u1, int count,
-                  const std::vector<int>& textures, float z_max) {
+// Posters / doors / boards on a wall: rectangles 1 cm in front of wall `axis` = plane, facing
+// `inward`.
+void addWallDecor(Scene& s, std::mt19937_64& rng, int axis, float plane, float inward, float u0,
+                  float u1, int count, const std::vector<int>& textures, float z_max) {
   std::uniform_real_distribution<float> u01(0.f, 1.f);
   for (int i = 0; i < count; ++i) {
     const float w = 0.5f + 1.3f * u01(rng), h = 0.5f + 1.0f * u01(rng);
     const float cu = u0 + 0.5f * w + (u1 - u0 - w) * u01(rng);
     const float cz = std::min(z_max - 0.5f * h - 0.1f, 0.9f + 1.2f * u01(rng));
     const int tex = textures[static_cast<size_t>(u01(rng) * textures.size()) % textures.size()];
-    s.addRect(axis, plane + inward * 0.01f, V2(cu - 0.5f * w, cz - 0.5f * h), V2(cu + 0.5f * w, cz + 0.5f * h), tex,
-              0.8f + 0.3f * u01(rng), rng());
+    s.addRect(axis, plane + inward * 0.01f, V2(cu - 0.5f * w, cz - 0.5f * h),
+              V2(cu + 0.5f * w, cz + 0.5f * h), tex, 0.8f + 0.3f * u01(rng), rng());
   }
 }
 
@@ -145,17 +158,23 @@ Scene buildIndoor(uint64_t seed, const PathSamples& path) {
   for (int attempt = 0; attempt < 4000 && n_ok < 26; ++attempt) {
     const int kind = static_cast<int>(u01(rng) * 3);
     Eigen::Vector3f size;
-    if (kind == 0) size = V3(0.3f + 0.6f * u01(rng), 0.3f + 0.6f * u01(rng), 0.25f + 0.6f * u01(rng));  // boxes
-    else if (kind == 1) size = V3(0.4f + 0.8f * u01(rng), 0.4f + 1.2f * u01(rng), 1.2f + 0.9f * u01(rng));  // cabinets
-    else size = V3(0.8f + 1.0f * u01(rng), 0.6f + 0.6f * u01(rng), 0.7f + 0.1f * u01(rng));  // tables / desks
+    if (kind == 0)
+      size = V3(0.3f + 0.6f * u01(rng), 0.3f + 0.6f * u01(rng), 0.25f + 0.6f * u01(rng));  // boxes
+    else if (kind == 1)
+      size =
+          V3(0.4f + 0.8f * u01(rng), 0.4f + 1.2f * u01(rng), 1.2f + 0.9f * u01(rng));  // cabinets
+    else
+      size = V3(0.8f + 1.0f * u01(rng), 0.6f + 0.6f * u01(rng),
+                0.7f + 0.1f * u01(rng));  // tables / desks
     const float px = x0 + 0.05f + (2 * hx - size.x() - 0.1f) * u01(rng);
     const float py = y0 + 0.05f + (2 * hy - size.y() - 0.1f) * u01(rng);
-    const Eigen::AlignedBox2d b(Eigen::Vector2d(px, py), Eigen::Vector2d(px + size.x(), py + size.y()));
+    const Eigen::AlignedBox2d b(Eigen::Vector2d(px, py),
+                                Eigen::Vector2d(px + size.x(), py + size.y()));
     const double d = path.distance(b.min(), b.max());
     if (d < 0.5 || d > 5.0 || overlaps(placed, b, 0.1)) continue;
     placed.push_back(b);
-    s.addBox(V3(px, py, 0), V3(px + size.x(), py + size.y(), size.z()), u01(rng) < 0.5f ? t_box1 : t_box2,
-             0.6f + 0.4f * u01(rng), rng());
+    s.addBox(V3(px, py, 0), V3(px + size.x(), py + size.y(), size.z()),
+             u01(rng) < 0.5f ? t_box1 : t_box2, 0.6f + 0.4f * u01(rng), rng());
     ++n_ok;
   }
   return s;
@@ -173,7 +192,8 @@ Scene buildCorridor(uint64_t seed, const PathSamples& path) {
   const int t_box = addTexture(s, TextureStyle::kGeneric, 256, 0.008f, rng());
   const int t_ceil = addTexture(s, TextureStyle::kCeiling, 256, 0.02f, rng());
   // The corridor runs along x around the path's bounding box.
-  const float x0 = static_cast<float>(path.bbox.min().x()) - 4.f, x1 = static_cast<float>(path.bbox.max().x()) + 4.f;
+  const float x0 = static_cast<float>(path.bbox.min().x()) - 4.f,
+              x1 = static_cast<float>(path.bbox.max().x()) + 4.f;
   const float yc = static_cast<float>(path.bbox.center().y());
   const float hw = static_cast<float>(std::max(1.2, 0.5 * path.bbox.sizes().y() + 1.0));
   const float y0 = yc - hw, y1 = yc + hw, zc = 2.6f;
@@ -189,10 +209,13 @@ Scene buildCorridor(uint64_t seed, const PathSamples& path) {
     for (int i = 0; i < n; ++i) {
       const float cx = x0 + 1.5f + 3.0f * i + 0.8f * (u01(rng) - 0.5f);
       if (u01(rng) < 0.4f)  // door
-        s.addRect(1, plane, V2(cx - 0.45f, 0.f), V2(cx + 0.45f, 2.05f), t_door, 0.35f + 0.3f * u01(rng), rng());
+        s.addRect(1, plane, V2(cx - 0.45f, 0.f), V2(cx + 0.45f, 2.05f), t_door,
+                  0.35f + 0.3f * u01(rng), rng());
       else if (u01(rng) < 0.7f) {  // poster
-        const float w = 0.5f + 0.8f * u01(rng), h = 0.5f + 0.6f * u01(rng), cz = 1.2f + 0.6f * u01(rng);
-        s.addRect(1, plane, V2(cx - w / 2, cz - h / 2), V2(cx + w / 2, cz + h / 2), t_poster, 0.9f, rng());
+        const float w = 0.5f + 0.8f * u01(rng), h = 0.5f + 0.6f * u01(rng),
+                    cz = 1.2f + 0.6f * u01(rng);
+        s.addRect(1, plane, V2(cx - w / 2, cz - h / 2), V2(cx + w / 2, cz + h / 2), t_poster, 0.9f,
+                  rng());
       }
     }
   }
@@ -201,10 +224,12 @@ Scene buildCorridor(uint64_t seed, const PathSamples& path) {
     const V3 size(0.3f + 0.5f * u01(rng), 0.25f + 0.3f * u01(rng), 0.3f + 1.0f * u01(rng));
     const float px = x0 + (x1 - x0 - size.x()) * u01(rng);
     const float py = u01(rng) < 0.5f ? y0 + 0.02f : y1 - 0.02f - size.y();
-    const Eigen::AlignedBox2d b(Eigen::Vector2d(px, py), Eigen::Vector2d(px + size.x(), py + size.y()));
+    const Eigen::AlignedBox2d b(Eigen::Vector2d(px, py),
+                                Eigen::Vector2d(px + size.x(), py + size.y()));
     if (path.distance(b.min(), b.max()) < 0.5 || overlaps(placed, b, 0.2)) continue;
     placed.push_back(b);
-    s.addBox(V3(px, py, 0), V3(px + size.x(), py + size.y(), size.z()), t_box, 0.6f + 0.4f * u01(rng), rng());
+    s.addBox(V3(px, py, 0), V3(px + size.x(), py + size.y(), size.z()), t_box,
+             0.6f + 0.4f * u01(rng), rng());
     ++ok;
   }
   return s;
@@ -222,7 +247,8 @@ Scene buildStreet(uint64_t seed, const PathSamples& path) {
   const int t_car = addTexture(s, TextureStyle::kGeneric, 256, 0.01f, rng());
   const int t_pole = addTexture(s, TextureStyle::kGeneric, 128, 0.01f, rng());
   const int t_mark = addTexture(s, TextureStyle::kCeiling, 64, 0.05f, rng());
-  const Eigen::Vector2d bmin = path.bbox.min() - Eigen::Vector2d(60, 60), bmax = path.bbox.max() + Eigen::Vector2d(60, 60);
+  const Eigen::Vector2d bmin = path.bbox.min() - Eigen::Vector2d(60, 60),
+                        bmax = path.bbox.max() + Eigen::Vector2d(60, 60);
   s.addRect(2, 0.f, V2(bmin.x(), bmin.y()), V2(bmax.x(), bmax.y()), t_road, 0.7f, rng());
   std::vector<Eigen::AlignedBox2d> buildings, small;
   double last_mark = -1e9;
@@ -245,20 +271,22 @@ Scene buildStreet(uint64_t seed, const PathSamples& path) {
     };
     for (int side = -1; side <= 1; side += 2) {
       // Building: front 5-8 m from the road centre.
-      const double d = 5.0 + 3.0 * u01(rng), len = 6.0 + 10.0 * u01(rng), depth = 8.0 + 6.0 * u01(rng);
+      const double d = 5.0 + 3.0 * u01(rng), len = 6.0 + 10.0 * u01(rng),
+                   depth = 8.0 + 6.0 * u01(rng);
       const Eigen::AlignedBox2d b = footprint(-0.5 * len, 0.5 * len, side * d, side * (d + depth));
       if (path.distance(b.min(), b.max()) >= 4.8 && !overlaps(buildings, b, 0.3)) {
         buildings.push_back(b);
         const float h = 6.f + 16.f * u01(rng);
-        s.addBox(V3(b.min().x(), b.min().y(), 0), V3(b.max().x(), b.max().y(), h), u01(rng) < 0.5f ? t_facade1 : t_facade2,
-                 0.6f + 0.4f * u01(rng), rng());
+        s.addBox(V3(b.min().x(), b.min().y(), 0), V3(b.max().x(), b.max().y(), h),
+                 u01(rng) < 0.5f ? t_facade1 : t_facade2, 0.6f + 0.4f * u01(rng), rng());
       }
       if (u01(rng) < 0.12f) {  // pole
         const double lat = 3.6 + 0.6 * u01(rng);
         const Eigen::AlignedBox2d pb = footprint(-0.07, 0.07, side * lat, side * (lat + 0.14));
         if (path.distance(pb.min(), pb.max()) >= 3.0 && !overlaps(small, pb, 1.0)) {
           small.push_back(pb);
-          s.addBox(V3(pb.min().x(), pb.min().y(), 0), V3(pb.max().x(), pb.max().y(), 4.f + 3.f * u01(rng)), t_pole,
+          s.addBox(V3(pb.min().x(), pb.min().y(), 0),
+                   V3(pb.max().x(), pb.max().y(), 4.f + 3.f * u01(rng)), t_pole,
                    0.4f + 0.4f * u01(rng), rng());
         }
       }
@@ -268,11 +296,15 @@ Scene buildStreet(uint64_t seed, const PathSamples& path) {
         if (path.distance(cb.min(), cb.max()) >= 2.0 && !overlaps(small, cb, 0.8)) {
           small.push_back(cb);
           const float g = 0.3f + 0.7f * u01(rng);
-          s.addBox(V3(cb.min().x(), cb.min().y(), 0.15f), V3(cb.max().x(), cb.max().y(), 0.9f), t_car, g, rng());
-          const Eigen::Vector2d shrink = 0.5 * (cb.sizes() - Eigen::Vector2d(std::abs(fwd.x()) * 2.2 + std::abs(fwd.y()) * 1.5,
-                                                                              std::abs(fwd.y()) * 2.2 + std::abs(fwd.x()) * 1.5));
+          s.addBox(V3(cb.min().x(), cb.min().y(), 0.15f), V3(cb.max().x(), cb.max().y(), 0.9f),
+                   t_car, g, rng());
+          const Eigen::Vector2d shrink =
+              0.5 *
+              (cb.sizes() - Eigen::Vector2d(std::abs(fwd.x()) * 2.2 + std::abs(fwd.y()) * 1.5,
+                                            std::abs(fwd.y()) * 2.2 + std::abs(fwd.x()) * 1.5));
           s.addBox(V3(cb.min().x() + shrink.x(), cb.min().y() + shrink.y(), 0.9f),
-                   V3(cb.max().x() - shrink.x(), cb.max().y() - shrink.y(), 1.45f), t_car, 0.5f * g, rng());
+                   V3(cb.max().x() - shrink.x(), cb.max().y() - shrink.y(), 1.45f), t_car, 0.5f * g,
+                   rng());
         }
       }
     }
@@ -280,7 +312,8 @@ Scene buildStreet(uint64_t seed, const PathSamples& path) {
     if (along - last_mark >= 9.0) {
       last_mark = along;
       const Eigen::AlignedBox2d m = footprint(0.0, 3.0, -0.07, 0.07);
-      s.addRect(2, 0.005f, V2(m.min().x(), m.min().y()), V2(m.max().x(), m.max().y()), t_mark, 2.5f, rng());
+      s.addRect(2, 0.005f, V2(m.min().x(), m.min().y()), V2(m.max().x(), m.max().y()), t_mark, 2.5f,
+                rng());
     }
   }
   return s;
@@ -301,8 +334,13 @@ Scene buildScene(const std::string& kind, uint64_t seed, const VehicleTrajectory
 // ---------------------------------------------------------------------------------------------
 
 SceneRenderer::SceneRenderer(const Scene& scene, const CameraModel& camera, int supersampling)
-    : scene_(scene), camera_(camera), ss_(supersampling), width_(camera.width()), height_(camera.height()) {
-  if (ss_ < 1 || ss_ > 4) throw std::invalid_argument("SceneRenderer: supersampling must be in [1, 4]");
+    : scene_(scene),
+      camera_(camera),
+      ss_(supersampling),
+      width_(camera.width()),
+      height_(camera.height()) {
+  if (ss_ < 1 || ss_ > 4)
+    throw std::invalid_argument("SceneRenderer: supersampling must be in [1, 4]");
   for (const auto& t : scene.textures)
     if (!t) throw std::invalid_argument("SceneRenderer: null texture");
   for (const auto& f : scene.faces)
@@ -310,15 +348,17 @@ SceneRenderer::SceneRenderer(const Scene& scene, const CameraModel& camera, int 
       throw std::invalid_argument("SceneRenderer: face with bad texture index");
   tiles_x_ = (width_ + kTile - 1) / kTile;
   tiles_y_ = (height_ + kTile - 1) / kTile;
-  pixel_angle_ = static_cast<float>(1.0 / std::max(camera.calibration().fx, camera.calibration().fy));
+  pixel_angle_ =
+      static_cast<float>(1.0 / std::max(camera.calibration().fx, camera.calibration().fy));
   const size_t n_rays = static_cast<size_t>(width_) * height_ * ss_ * ss_;
   ray_x_.resize(n_rays);
   ray_y_.resize(n_rays);
   ray_z_.resize(n_rays);
   tile_ray_begin_.resize(static_cast<size_t>(tiles_x_) * tiles_y_ + 1);
-  tile_bounds_.assign(static_cast<size_t>(tiles_x_) * tiles_y_,
-                      Eigen::Vector4f(std::numeric_limits<float>::max(), -std::numeric_limits<float>::max(),
-                                      std::numeric_limits<float>::max(), -std::numeric_limits<float>::max()));
+  tile_bounds_.assign(
+      static_cast<size_t>(tiles_x_) * tiles_y_,
+      Eigen::Vector4f(std::numeric_limits<float>::max(), -std::numeric_limits<float>::max(),
+                      std::numeric_limits<float>::max(), -std::numeric_limits<float>::max()));
   size_t r = 0;
   for (int ty = 0; ty < tiles_y_; ++ty)
     for (int tx = 0; tx < tiles_x_; ++tx) {
@@ -332,7 +372,8 @@ SceneRenderer::SceneRenderer(const Scene& scene, const CameraModel& camera, int 
               if (ss_ == 1) {
                 b = camera.bearing(x, y);
               } else {
-                b = camera.bearingAt(x + (i + 0.5) / ss_ - 0.5, y + (j + 0.5) / ss_ - 0.5).cast<float>();
+                b = camera.bearingAt(x + (i + 0.5) / ss_ - 0.5, y + (j + 0.5) / ss_ - 0.5)
+                        .cast<float>();
               }
               ray_x_[r] = b.x();
               ray_y_[r] = b.y();
@@ -345,9 +386,11 @@ SceneRenderer::SceneRenderer(const Scene& scene, const CameraModel& camera, int 
             }
     }
   tile_ray_begin_.back() = r;
-  for (auto* v : {&ray_x_, &ray_y_, &ray_z_}) v->resize(n_rays + 4, 0.f);  // a chunk's last vector may read past its end
+  for (auto* v : {&ray_x_, &ray_y_, &ray_z_})
+    v->resize(n_rays + 4, 0.f);  // a chunk's last vector may read past its end
   // Grow tile bounds by half a pixel so faces touching a tile's border are not missed.
-  for (auto& tb : tile_bounds_) tb += Eigen::Vector4f(-pixel_angle_, pixel_angle_, -pixel_angle_, pixel_angle_);
+  for (auto& tb : tile_bounds_)
+    tb += Eigen::Vector4f(-pixel_angle_, pixel_angle_, -pixel_angle_, pixel_angle_);
   tile_faces_.resize(tile_bounds_.size());
   const float inf = std::numeric_limits<float>::max();
   col_bounds_.assign(tiles_x_, Eigen::Vector2f(inf, -inf));
@@ -355,13 +398,16 @@ SceneRenderer::SceneRenderer(const Scene& scene, const CameraModel& camera, int 
   for (int ty = 0; ty < tiles_y_; ++ty)
     for (int tx = 0; tx < tiles_x_; ++tx) {
       const Eigen::Vector4f& tb = tile_bounds_[ty * tiles_x_ + tx];
-      col_bounds_[tx] = Eigen::Vector2f(std::min(col_bounds_[tx][0], tb[0]), std::max(col_bounds_[tx][1], tb[1]));
-      row_bounds_[ty] = Eigen::Vector2f(std::min(row_bounds_[ty][0], tb[2]), std::max(row_bounds_[ty][1], tb[3]));
+      col_bounds_[tx] =
+          Eigen::Vector2f(std::min(col_bounds_[tx][0], tb[0]), std::max(col_bounds_[tx][1], tb[1]));
+      row_bounds_[ty] =
+          Eigen::Vector2f(std::min(row_bounds_[ty][0], tb[2]), std::max(row_bounds_[ty][1], tb[3]));
     }
   sensor_bounds_ = Eigen::Vector4f(inf, -inf, inf, -inf);
   for (const auto& tb : tile_bounds_)
-    sensor_bounds_ = Eigen::Vector4f(std::min(sensor_bounds_[0], tb[0]), std::max(sensor_bounds_[1], tb[1]),
-                                     std::min(sensor_bounds_[2], tb[2]), std::max(sensor_bounds_[3], tb[3]));
+    sensor_bounds_ =
+        Eigen::Vector4f(std::min(sensor_bounds_[0], tb[0]), std::max(sensor_bounds_[1], tb[1]),
+                        std::min(sensor_bounds_[2], tb[2]), std::max(sensor_bounds_[3], tb[3]));
 }
 
 void SceneRenderer::prepare(const Pose3& T_odom_cam) {
@@ -407,8 +453,8 @@ void SceneRenderer::prepare(const Pose3& T_odom_cam) {
         add(a + s * (b - a));
       }
     }
-    if (n_in == 0 || bb[1] < sensor_bounds_[0] || bb[0] > sensor_bounds_[1] || bb[3] < sensor_bounds_[2] ||
-        bb[2] > sensor_bounds_[3])
+    if (n_in == 0 || bb[1] < sensor_bounds_[0] || bb[0] > sensor_bounds_[1] ||
+        bb[3] < sensor_bounds_[2] || bb[2] > sensor_bounds_[3])
       continue;
     FaceCam fc;
     fc.axis = f.axis;
@@ -486,7 +532,8 @@ void SceneRenderer::renderTile(int tx, int tile_row, float* intensity, float* de
   const Eigen::Matrix3f& R = R_odom_cam_;
   Vf4 d[3][kV];    // ray directions in odom (unit)
   Vf4 inv[3][kV];  // their reciprocals (a zero component gives inf: no hit)
-  Vf4 t_hit[kV], u_hit[kV], v_hit[kV], d_normal[kV];  // nearest hit: distance, (u, v), direction along the normal
+  Vf4 t_hit[kV], u_hit[kV], v_hit[kV],
+      d_normal[kV];  // nearest hit: distance, (u, v), direction along the normal
   Vi4 face_hit[kV];  // index into faces, -1: sky
   constexpr float kFar = std::numeric_limits<float>::max();
   for (int cy0 = y0; cy0 < y1; cy0 += rows_per_chunk) {
@@ -507,7 +554,8 @@ void SceneRenderer::renderTile(int tx, int tile_row, float* intensity, float* de
       u_hit[i] = v_hit[i] = d_normal[i] = Vf4{0, 0, 0, 0};
       face_hit[i] = Vi4{-1, -1, -1, -1};
     }
-    for (int k = n; k < 4 * nv; ++k) t_hit[k / 4][k % 4] = 0.f;  // padding lanes: never hit, never open
+    for (int k = n; k < 4 * nv; ++k)
+      t_hit[k / 4][k % 4] = 0.f;  // padding lanes: never hit, never open
     for (int k = 0; k < n_faces; ++k) {
       const FaceCam& f = visible_[faces[k]];
       const Vf4* inv_a = inv[f.axis];
@@ -526,7 +574,8 @@ void SceneRenderer::renderTile(int tx, int tile_row, float* intensity, float* de
         const Vf4 u = o_u + t * d_u[i];
         const Vf4 v = o_v + t * d_v[i];
         const Vf4 t_old = t_hit[i];
-        const Vi4 hit = (t > 1e-4f) & (t < t_old) & (u >= lo_u) & (u <= hi_u) & (v >= lo_v) & (v <= hi_v);
+        const Vi4 hit =
+            (t > 1e-4f) & (t < t_old) & (u >= lo_u) & (u <= hi_u) & (v >= lo_v) & (v <= hi_v);
         const Vf4 t_new = hit ? t : t_old;
         t_hit[i] = t_new;
         u_hit[i] = hit ? u : u_hit[i];
@@ -547,15 +596,18 @@ void SceneRenderer::renderTile(int tx, int tile_row, float* intensity, float* de
           const int fk = face_hit[q][l];
           if (fk < 0) {
             // Sky: a little brighter upwards.
-            sum += scene_.sky_intensity * (0.85f + 0.15f * std::min(1.f, std::max(0.f, d[2][q][l] * 3.f)));
+            sum += scene_.sky_intensity *
+                   (0.85f + 0.15f * std::min(1.f, std::max(0.f, d[2][q][l] * 3.f)));
             continue;
           }
           const FaceCam& f = visible_[faces[fk]];
           // Pixel footprint on the surface: grows with distance and obliquity (isotropic filter
           // with a compromise between the two axes of the footprint ellipse).
           const float t = t_hit[q][l];
-          const float footprint = t * foot_scale / std::sqrt(std::max(0.05f, std::abs(d_normal[q][l])));
-          sum += f.gain * f.tex->sample(u_hit[q][l] + f.offset[0], v_hit[q][l] + f.offset[1], footprint);
+          const float footprint =
+              t * foot_scale / std::sqrt(std::max(0.05f, std::abs(d_normal[q][l])));
+          sum += f.gain *
+                 f.tex->sample(u_hit[q][l] + f.offset[0], v_hit[q][l] + f.offset[1], footprint);
           if (s == 0) z_cam = t * bz[i];
         }
         if (intensity) intensity[pix] = sum * inv_nss;
@@ -564,7 +616,8 @@ void SceneRenderer::renderTile(int tx, int tile_row, float* intensity, float* de
   }
 }
 
-void SceneRenderer::render(const Pose3& T_odom_cam, float* intensity, float* depth, ThreadPool* pool) {
+void SceneRenderer::render(const Pose3& T_odom_cam, float* intensity, float* depth,
+                           ThreadPool* pool) {
   prepare(T_odom_cam);
   if (!pool) {
     for (int r = 0; r < tiles_y_; ++r) renderTileRow(r, intensity, depth);

@@ -11,25 +11,29 @@ std::vector<ProfileSegment> circleProfile(double v, double omega, double duratio
   return {{duration_s, v, omega}};
 }
 
-std::vector<ProfileSegment> straightProfile(double v, double duration_s) { return {{duration_s, v, 0.0}}; }
+std::vector<ProfileSegment> straightProfile(double v, double duration_s) {
+  return {{duration_s, v, 0.0}};
+}
 
-std::vector<ProfileSegment> rotationProfile(double omega, double duration_s) { return {{duration_s, 0.0, omega}}; }
+std::vector<ProfileSegment> rotationProfile(double omega, double duration_s) {
+  return {{duration_s, 0.0, omega}};
+}
 
 std::vector<ProfileSegment> longIndoorProfile(double v, double standstill_s) {
   // Turn segments turn by exactly duration * omega (blends are antisymmetric).
   return {
-      {3.0, v, 0.0},                    // straight
-      {3.0, 0.8 * v, 30 * kRadPerDeg},        // 90 deg left
-      {2.5, v, 0.0},                    //
-      {2.0, 0.7 * v, 45 * kRadPerDeg},        // 90 deg left, tighter
-      {1.5, 0.6 * v, 0.0},              // slow down
-      {standstill_s + 0.4, 0.0, 0.0},   // standstill (exactly zero for standstill_s)
-      {2.5, v, 0.0},                    // go again
-      {3.0, 0.8 * v, -30 * kRadPerDeg},       // 90 deg right
-      {2.0, v, 0.0},                    //
-      {2.0, 0.7 * v, 60 * kRadPerDeg},        // 120 deg left, fast yaw
-      {1.5, 1.2 * v, 0.0},              // faster straight
-      {3.0, 0.8 * v, 30 * kRadPerDeg},        // 90 deg left
+      {3.0, v, 0.0},                     // straight
+      {3.0, 0.8 * v, 30 * kRadPerDeg},   // 90 deg left
+      {2.5, v, 0.0},                     //
+      {2.0, 0.7 * v, 45 * kRadPerDeg},   // 90 deg left, tighter
+      {1.5, 0.6 * v, 0.0},               // slow down
+      {standstill_s + 0.4, 0.0, 0.0},    // standstill (exactly zero for standstill_s)
+      {2.5, v, 0.0},                     // go again
+      {3.0, 0.8 * v, -30 * kRadPerDeg},  // 90 deg right
+      {2.0, v, 0.0},                     //
+      {2.0, 0.7 * v, 60 * kRadPerDeg},   // 120 deg left, fast yaw
+      {1.5, 1.2 * v, 0.0},               // faster straight
+      {3.0, 0.8 * v, 30 * kRadPerDeg},   // 90 deg left
       {1.1, v, 0.0},
   };
 }
@@ -95,7 +99,8 @@ std::vector<SequenceSpec> standardSequences() {
   {
     SequenceSpec s;
     s.name = "indoor_long";
-    s.description = "lab room, 0.35 m/s, left/right turns up to 60 deg/s, stop-and-go, 3 s standstill";
+    s.description =
+        "lab room, 0.35 m/s, left/right turns up to 60 deg/s, stop-and-go, 3 s standstill";
     s.scene = "indoor";
     s.seed = 13;
     s.profile = longIndoorProfile(0.35, 3.0);
@@ -105,7 +110,9 @@ std::vector<SequenceSpec> standardSequences() {
   {
     SequenceSpec s;
     s.name = "indoor_hdr";
-    s.description = "lab room circle 0.35 m/s, 20 deg/s; light toggles 1 <-> 0.05 every 4 s, more noise in the dark";
+    s.description =
+        "lab room circle 0.35 m/s, 20 deg/s; light toggles 1 <-> 0.05 every 4 s, more noise in the "
+        "dark";
     s.scene = "indoor";
     s.seed = 14;
     s.profile = circleProfile(0.35, 20 * kRadPerDeg, 18.0);
@@ -140,7 +147,8 @@ std::vector<SequenceSpec> standardSequences() {
   {
     SequenceSpec s;
     s.name = "street_long";
-    s.description = "city streets, car at 5-8 m/s, 90-degree turns, facades 5-8 m from the road centre";
+    s.description =
+        "city streets, car at 5-8 m/s, 90-degree turns, facades 5-8 m from the road centre";
     s.scene = "street";
     s.seed = 21;
     s.profile = streetProfile(s.seed, 40.0);

@@ -10,14 +10,19 @@ namespace vwe_vo {
 namespace sim {
 
 void VibrationOptions::validate() const {
-  if (!(height_amplitude_m >= 0 && height_amplitude_m < 0.5)) throw std::invalid_argument("vibration.height_amplitude_m must be in [0, 0.5)");
-  if (!(pitch_amplitude_rad >= 0 && pitch_amplitude_rad < 0.5)) throw std::invalid_argument("vibration.pitch_amplitude_rad must be in [0, 0.5)");
-  if (!(roll_amplitude_rad >= 0 && roll_amplitude_rad < 0.5)) throw std::invalid_argument("vibration.roll_amplitude_rad must be in [0, 0.5)");
-  if (!(frequency_hz > 0 && frequency_hz < 200)) throw std::invalid_argument("vibration.frequency_hz must be in (0, 200)");
+  if (!(height_amplitude_m >= 0 && height_amplitude_m < 0.5))
+    throw std::invalid_argument("vibration.height_amplitude_m must be in [0, 0.5)");
+  if (!(pitch_amplitude_rad >= 0 && pitch_amplitude_rad < 0.5))
+    throw std::invalid_argument("vibration.pitch_amplitude_rad must be in [0, 0.5)");
+  if (!(roll_amplitude_rad >= 0 && roll_amplitude_rad < 0.5))
+    throw std::invalid_argument("vibration.roll_amplitude_rad must be in [0, 0.5)");
+  if (!(frequency_hz > 0 && frequency_hz < 200))
+    throw std::invalid_argument("vibration.frequency_hz must be in (0, 200)");
 }
 
 void VehicleTrajectoryOptions::validate() const {
-  if (!(table_step_s >= 1e-5 && table_step_s <= 0.01)) throw std::invalid_argument("table_step_s must be in [1e-5, 0.01]");
+  if (!(table_step_s >= 1e-5 && table_step_s <= 0.01))
+    throw std::invalid_argument("table_step_s must be in [1e-5, 0.01]");
   if (!(blend_s >= 0 && blend_s <= 10)) throw std::invalid_argument("blend_s must be in [0, 10]");
   if (!start_xyyaw.allFinite()) throw std::invalid_argument("start_xyyaw must be finite");
   vibration.validate();
@@ -39,7 +44,8 @@ double VehicleTrajectory::profileValue(double t_s, bool want_v) const {
   for (size_t i = 1; i < segments_.size(); ++i) {
     const double prev = want_v ? segments_[i - 1].v : segments_[i - 1].omega;
     const double next = want_v ? segments_[i].v : segments_[i].omega;
-    const double w = options_.blend_s > 0 ? smoothStep((t_s - boundary) / options_.blend_s) : (t_s >= boundary ? 1.0 : 0.0);
+    const double w = options_.blend_s > 0 ? smoothStep((t_s - boundary) / options_.blend_s)
+                                          : (t_s >= boundary ? 1.0 : 0.0);
     value += (next - prev) * w;
     boundary += segments_[i].duration_s;
   }
@@ -88,9 +94,11 @@ VehicleTrajectory VehicleTrajectory::fromProfile(const std::vector<ProfileSegmen
   return tr;
 }
 
-VehicleTrajectory VehicleTrajectory::fromTum(const Trajectory3& tum, const VehicleTrajectoryOptions& options) {
+VehicleTrajectory VehicleTrajectory::fromTum(const Trajectory3& tum,
+                                             const VehicleTrajectoryOptions& options) {
   options.validate();
-  if (tum.size() < 2) throw std::invalid_argument("VehicleTrajectory: a TUM trajectory needs at least 2 poses");
+  if (tum.size() < 2)
+    throw std::invalid_argument("VehicleTrajectory: a TUM trajectory needs at least 2 poses");
   VehicleTrajectory tr;
   tr.from_profile_ = false;
   tr.options_ = options;
@@ -98,7 +106,8 @@ VehicleTrajectory VehicleTrajectory::fromTum(const Trajectory3& tum, const Vehic
   for (const auto& p : tum) tr.tum_.push_back({p.t_ns - t0, p.T});
   tr.duration_ns_ = tr.tum_.back().t_ns;
   for (size_t i = 1; i < tr.tum_.size(); ++i)
-    tr.path_length_ += (tr.tum_[i].T.translation() - tr.tum_[i - 1].T.translation()).head<2>().norm();
+    tr.path_length_ +=
+        (tr.tum_[i].T.translation() - tr.tum_[i - 1].T.translation()).head<2>().norm();
   return tr;
 }
 
@@ -120,7 +129,8 @@ Vec3 VehicleTrajectory::planar(int64_t t_ns) const {
   const Sample& s = table_[k];
   const Vec2 dp = arcT_Vr_Vt(s.omega_step, s.v_step, d).translation().head<2>();
   const double c = std::cos(s.yaw), sn = std::sin(s.yaw);
-  return Vec3(s.x + c * dp.x() - sn * dp.y(), s.y + sn * dp.x() + c * dp.y(), wrapAngle(s.yaw + s.omega_step * d));
+  return Vec3(s.x + c * dp.x() - sn * dp.y(), s.y + sn * dp.x() + c * dp.y(),
+              wrapAngle(s.yaw + s.omega_step * d));
 }
 
 Pose3 VehicleTrajectory::T_odom_base(int64_t t_ns) const {
@@ -136,9 +146,13 @@ Pose3 VehicleTrajectory::T_odom_base(int64_t t_ns) const {
     const double w = 2.0 * kPi * vib.frequency_hz * nsToSec(t_ns);
     // Two incommensurate tones per axis: irregular but smooth.
     const double z = vib.height_amplitude_m * (0.7 * std::sin(w) + 0.3 * std::sin(2.31 * w + 1.0));
-    const double pitch = vib.pitch_amplitude_rad * (0.7 * std::sin(1.13 * w + 0.5) + 0.3 * std::sin(2.87 * w + 2.0));
-    const double roll = vib.roll_amplitude_rad * (0.7 * std::sin(0.91 * w + 1.7) + 0.3 * std::sin(3.41 * w + 0.3));
-    const Mat3 R = (Eigen::AngleAxisd(pitch, Vec3::UnitY()) * Eigen::AngleAxisd(roll, Vec3::UnitX())).toRotationMatrix();
+    const double pitch =
+        vib.pitch_amplitude_rad * (0.7 * std::sin(1.13 * w + 0.5) + 0.3 * std::sin(2.87 * w + 2.0));
+    const double roll =
+        vib.roll_amplitude_rad * (0.7 * std::sin(0.91 * w + 1.7) + 0.3 * std::sin(3.41 * w + 0.3));
+    const Mat3 R =
+        (Eigen::AngleAxisd(pitch, Vec3::UnitY()) * Eigen::AngleAxisd(roll, Vec3::UnitX()))
+            .toRotationMatrix();
     T = T * makePose(R, Vec3(0, 0, z));
   }
   return T;
@@ -157,7 +171,8 @@ double VehicleTrajectory::speed(int64_t t_ns) const {
 }
 
 double VehicleTrajectory::yawRate(int64_t t_ns) const {
-  if (from_profile_) return profileValue(nsToSec(std::clamp<int64_t>(t_ns, 0, duration_ns_)), false);
+  if (from_profile_)
+    return profileValue(nsToSec(std::clamp<int64_t>(t_ns, 0, duration_ns_)), false);
   const int64_t h = 5000000;
   const int64_t a = std::max<int64_t>(0, t_ns - h), b = std::min(duration_ns_, t_ns + h);
   if (b <= a) return 0.0;

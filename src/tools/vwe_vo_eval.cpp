@@ -86,9 +86,12 @@ int main(int argc, char** argv) {
               << vwe_vo::formatTable(result);
     nlohmann::json j = vwe_vo::toJson(result);
     if (!arcs_path.empty()) {
-      const vwe_vo::WindowYawRateResult w = vwe_vo::evaluateWindowYawRates(gt, vwe_vo::readArcsCsv(arcs_path));
-      std::printf("  window yaw rate (arcs)        RMSE %.3f deg/s, median |err| %.3f, max %.3f (%zu windows, %zu standstill)\n",
-                  w.rmse_deg_s, w.median_abs_deg_s, w.max_abs_deg_s, w.windows, w.standstill_windows);
+      const vwe_vo::WindowYawRateResult w =
+          vwe_vo::evaluateWindowYawRates(gt, vwe_vo::readArcsCsv(arcs_path));
+      std::printf(
+          "  window yaw rate (arcs)        RMSE %.3f deg/s, median |err| %.3f, max %.3f (%zu "
+          "windows, %zu standstill)\n",
+          w.rmse_deg_s, w.median_abs_deg_s, w.max_abs_deg_s, w.windows, w.standstill_windows);
       j["window_yaw_rate"] = vwe_vo::toJson(w);
     }
     if (!json_path.empty()) {

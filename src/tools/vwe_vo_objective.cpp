@@ -24,9 +24,9 @@
 #include <sstream>
 #include <string>
 
-#include "vwe_vo/io/files.h"
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/io/trajectory_io.h"
 #include "vwe_vo/ros/conversions.h"
@@ -35,7 +35,8 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: vwe_vo_objective --bag FILE --t S [--gt GT.tum] [--config YAML] [--duration S]\n"
-    "                        [--v V] [--range DEG_S] [--step DEG_S] [--events-topic T] [--out CSV]\n"
+    "                        [--v V] [--range DEG_S] [--step DEG_S] [--events-topic T] [--out "
+    "CSV]\n"
     "                        [--dump-events FILE] [--events FILE]\n"
     "  Writes the front-end objective (the VWE's contrast) over the yaw rate for the window of\n"
     "  --duration (default: the config's window_duration_s) centred at --t [s, bag time] as CSV\n"
@@ -68,14 +69,18 @@ int main(int argc, char** argv) {
   try {
     const vwe_vo::PipelineConfig cfg = vwe_vo::loadPipelineConfig(
         args.count("--config") ? args["--config"] : vwe_vo::defaultConfigDir() + "/vwe_vo.yaml");
-    const double duration = args.count("--duration") ? std::stod(args["--duration"])
-                                                     : cfg.frontend.window_duration_s;
-    const double range = (args.count("--range") ? std::stod(args["--range"]) : 10.0) / vwe_vo::kDegPerRad;
-    const double step = (args.count("--step") ? std::stod(args["--step"]) : 0.1) / vwe_vo::kDegPerRad;
+    const double duration =
+        args.count("--duration") ? std::stod(args["--duration"]) : cfg.frontend.window_duration_s;
+    const double range =
+        (args.count("--range") ? std::stod(args["--range"]) : 10.0) / vwe_vo::kDegPerRad;
+    const double step =
+        (args.count("--step") ? std::stod(args["--step"]) : 0.1) / vwe_vo::kDegPerRad;
     if (!(duration > 0) || !(range > 0) || !(step > 0) || range / step > 100000)
-      throw std::invalid_argument("--duration, --range and --step must be positive (range/step <= 1e5)");
+      throw std::invalid_argument(
+          "--duration, --range and --step must be positive (range/step <= 1e5)");
     const int64_t t_ref = vwe_vo::secToNs(std::stod(args["--t"]));
-    const int64_t t0 = t_ref - vwe_vo::secToNs(duration / 2), t1 = t_ref + vwe_vo::secToNs(duration / 2);
+    const int64_t t0 = t_ref - vwe_vo::secToNs(duration / 2),
+                  t1 = t_ref + vwe_vo::secToNs(duration / 2);
 
     double v = args.count("--v") ? std::stod(args["--v"]) : cfg.frontend.nominal_speed_mps;
     double omega_true = std::nan("");
@@ -109,8 +114,8 @@ int main(int argc, char** argv) {
     } else {
       rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
       // Packets are stamped with their first event: start a little early.
-      rosbag::View view(bag, rosbag::TopicQuery(topic), vwe_vo::toRosTime(t0 - vwe_vo::secToNs(0.2)),
-                        vwe_vo::toRosTime(t1));
+      rosbag::View view(bag, rosbag::TopicQuery(topic),
+                        vwe_vo::toRosTime(t0 - vwe_vo::secToNs(0.2)), vwe_vo::toRosTime(t1));
       vwe_vo::EventVector packet;
       vwe_vo::EventConversionStats conv;
       for (const rosbag::MessageInstance& m : view) {
@@ -131,9 +136,9 @@ int main(int argc, char** argv) {
 
     const vwe_vo::CameraModel camera(cfg.camera);
     vwe_vo::Frontend frontend(cfg.frontend, camera, cfg.T_base_cam);
-    const vwe_vo::EventVector sub = vwe_vo::subsampleEventsPerTimeSlice(
-        window, t0, t1, cfg.frontend.max_events_per_volume, cfg.frontend.subsample_time_slices,
-        cfg.frontend.seed);
+    const vwe_vo::EventVector sub =
+        vwe_vo::subsampleEventsPerTimeSlice(window, t0, t1, cfg.frontend.max_events_per_volume,
+                                            cfg.frontend.subsample_time_slices, cfg.frontend.seed);
     const double centre = std::isfinite(omega_true) ? omega_true : 0.0;
     std::ofstream file;
     if (args.count("--out")) {
@@ -141,9 +146,10 @@ int main(int argc, char** argv) {
       if (!file) throw std::runtime_error("cannot write " + args["--out"]);
     }
     std::ostream& out = args.count("--out") ? file : std::cout;
-    out << "# window " << vwe_vo::nsToSec(t0) << " .. " << vwe_vo::nsToSec(t1) << " s, " << window.size()
-        << " events (" << sub.size() << " voted), v " << v << " m/s";
-    if (std::isfinite(omega_true)) out << ", true omega " << (omega_true * vwe_vo::kDegPerRad) << " deg/s";
+    out << "# window " << vwe_vo::nsToSec(t0) << " .. " << vwe_vo::nsToSec(t1) << " s, "
+        << window.size() << " events (" << sub.size() << " voted), v " << v << " m/s";
+    if (std::isfinite(omega_true))
+      out << ", true omega " << (omega_true * vwe_vo::kDegPerRad) << " deg/s";
     out << "\nomega_deg_s,contrast\n";
     double best = -1, best_omega = 0;
     for (double w = centre - range; w <= centre + range + 1e-12; w += step) {
@@ -151,10 +157,12 @@ int main(int argc, char** argv) {
       if (f > best) best = f, best_omega = w;
       out << (w * vwe_vo::kDegPerRad) << "," << f << "\n";
     }
-    std::fprintf(stderr, "[vwe_vo_objective] %zu events (%zu voted), v %.3f m/s: peak at %.2f deg/s",
+    std::fprintf(stderr,
+                 "[vwe_vo_objective] %zu events (%zu voted), v %.3f m/s: peak at %.2f deg/s",
                  window.size(), sub.size(), v, (best_omega * vwe_vo::kDegPerRad));
     if (std::isfinite(omega_true))
-      std::fprintf(stderr, ", truth %.2f deg/s (peak - truth %.2f deg/s)", (omega_true * vwe_vo::kDegPerRad),
+      std::fprintf(stderr, ", truth %.2f deg/s (peak - truth %.2f deg/s)",
+                   (omega_true * vwe_vo::kDegPerRad),
                    ((best_omega - omega_true) * vwe_vo::kDegPerRad));
     std::fprintf(stderr, "\n");
   } catch (const std::exception& e) {

@@ -7,6 +7,7 @@
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 #include <sys/stat.h>
+#include <yaml-cpp/yaml.h>
 
 #include <chrono>
 #include <cmath>
@@ -18,40 +19,51 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
-#include <yaml-cpp/yaml.h>
 
-#include "vwe_vo/io/files.h"
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/io/config.h"
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/pipeline/offline_pipeline.h"
 #include "vwe_vo/ros/conversions.h"
 
 namespace {
 
 const char* kUsage =
-    "usage: vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out OUTDIR\n"
-    "                      [--use-odom] [--frontend-only] [--backend-inline] [--events-topic T] [--odom-topic T]\n"
-    "                      [--imu-topic T] [--no-map] [--depth-png] [--baseline] [--baseline-only] [--image-topic T] [--quiet]\n"
-    "                      [--start S] [--truth-arcs GT.tum [--truth-arcs-blend A]] [--no-follow-backend]\n"
-    "  Runs the front-end and the back-end over recorded events at full speed (a bag from S seconds\n"
+    "usage: vwe_vo_offline (--bag FILE | --ecd DIR) [--config YAML] [--nominal-speed V] --out "
+    "OUTDIR\n"
+    "                      [--use-odom] [--frontend-only] [--backend-inline] [--events-topic T] "
+    "[--odom-topic T]\n"
+    "                      [--imu-topic T] [--no-map] [--depth-png] [--baseline] [--baseline-only] "
+    "[--image-topic T] [--quiet]\n"
+    "                      [--start S] [--truth-arcs GT.tum [--truth-arcs-blend A]] "
+    "[--no-follow-backend]\n"
+    "  Runs the front-end and the back-end over recorded events at full speed (a bag from S "
+    "seconds\n"
     "  after its start with --start, as a live system that starts late). Writes\n"
     "  OUTDIR/frontend.tum, OUTDIR/arcs.csv, OUTDIR/report.json, OUTDIR/options.yaml (the options\n"
     "  in use, every key) and (unless --frontend-only)\n"
     "  OUTDIR/backend.tum, OUTDIR/odom.tum (the continuous odometry backend_node would publish\n"
     "  live) and OUTDIR/spline.json. Then (unless --no-map) a second pass over the\n"
-    "  events maps them (EMVS) on the back-end's trajectory (the front-end's with --frontend-only)\n"
+    "  events maps them (EMVS) on the back-end's trajectory (the front-end's with "
+    "--frontend-only)\n"
     "  into OUTDIR/map.ply (binary PLY, odom frame); --depth-png adds OUTDIR/depth/depth_NNNN.png\n"
-    "  per keyframe. The back-end runs on its own thread beside the front-end (as the nodes do live);\n"
+    "  per keyframe. The back-end runs on its own thread beside the front-end (as the nodes do "
+    "live);\n"
     "  --backend-inline runs it in the front-end's thread after each event chunk (same results).\n"
-    "  As frontend_node (~follow_backend, on by default), the front-end takes the back-end's speed\n"
-    "  after each refinement unless --use-odom gives it; --no-follow-backend keeps its nominal speed.\n"
+    "  As frontend_node (~follow_backend, on by default), the front-end takes the back-end's "
+    "speed\n"
+    "  after each refinement unless --use-odom gives it; --no-follow-backend keeps its nominal "
+    "speed.\n"
     "  An ECD folder holds events.txt or events.txt.gz, calib.txt and optionally\n"
     "  extrinsics.txt (T_base_cam, overrides the config).\n"
     "  --baseline: also runs the frame-based baseline (KLT + 1-point Ackermann RANSAC) on the APS\n"
-    "  frames (ECD: images.txt + images/, bag: /dvs/image_raw) and writes OUTDIR/baseline.tum and a\n"
+    "  frames (ECD: images.txt + images/, bag: /dvs/image_raw) and writes OUTDIR/baseline.tum and "
+    "a\n"
     "  \"baseline\" stage in report.json; --baseline-only skips the event pipeline.\n"
-    "  --truth-arcs (research): the back-end gets the ground truth's yaw rate over each arc's window,\n"
-    "  moved towards the front-end's by A (default 0): truth + A * (front-end - truth). A = 0 shows\n"
+    "  --truth-arcs (research): the back-end gets the ground truth's yaw rate over each arc's "
+    "window,\n"
+    "  moved towards the front-end's by A (default 0): truth + A * (front-end - truth). A = 0 "
+    "shows\n"
     "  the back-end objective's own bias, A = 0.5 how much of a front-end error it corrects.\n"
     "  The front-end's outputs are unchanged; report.json says how many arcs were replaced.\n";
 
@@ -70,7 +82,9 @@ double groundTruthDuration(const std::string& dir) {
 size_t feedEcdFrames(const std::string& dir, vwe_vo::OfflinePipeline* pipeline) {
   const std::string list = dir + "/images.txt";
   std::ifstream in(list);
-  if (!in) throw std::runtime_error("--baseline: cannot open " + list + " (simulate with vwe_vo_sim --images)");
+  if (!in)
+    throw std::runtime_error("--baseline: cannot open " + list +
+                             " (simulate with vwe_vo_sim --images)");
   std::string line;
   size_t n = 0, line_no = 0;
   while (std::getline(in, line)) {
@@ -79,11 +93,15 @@ size_t feedEcdFrames(const std::string& dir, vwe_vo::OfflinePipeline* pipeline) 
     std::istringstream ss(line);
     double t = 0;
     std::string name;
-    if (!(ss >> t >> name)) throw std::runtime_error(list + ":" + std::to_string(line_no) + ": expected `t file`");
+    if (!(ss >> t >> name))
+      throw std::runtime_error(list + ":" + std::to_string(line_no) + ": expected `t file`");
     const cv::Mat img = cv::imread(dir + "/" + name, cv::IMREAD_UNCHANGED);
-    if (img.empty()) throw std::runtime_error(list + ":" + std::to_string(line_no) + ": cannot read " + dir + "/" + name);
+    if (img.empty())
+      throw std::runtime_error(list + ":" + std::to_string(line_no) + ": cannot read " + dir + "/" +
+                               name);
     if (img.type() != CV_8UC1)
-      throw std::runtime_error(list + ":" + std::to_string(line_no) + ": " + name + " is not an 8-bit mono image");
+      throw std::runtime_error(list + ":" + std::to_string(line_no) + ": " + name +
+                               " is not an 8-bit mono image");
     try {
       pipeline->addFrame(vwe_vo::secToNs(t), img);
     } catch (const std::invalid_argument& e) {
@@ -120,7 +138,8 @@ class Progress {
 
 int main(int argc, char** argv) {
   std::map<std::string, std::string> args;
-  bool use_odom = false, quiet = false, frontend_only = false, backend_inline = false, map = true, depth_png = false;
+  bool use_odom = false, quiet = false, frontend_only = false, backend_inline = false, map = true,
+       depth_png = false;
   bool baseline = false, baseline_only = false, follow_backend = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -145,9 +164,10 @@ int main(int argc, char** argv) {
       follow_backend = false;
     } else if (a == "--quiet") {
       quiet = true;
-    } else if ((a == "--bag" || a == "--ecd" || a == "--config" || a == "--nominal-speed" || a == "--out" ||
-                a == "--events-topic" || a == "--odom-topic" || a == "--imu-topic" || a == "--image-topic" ||
-                a == "--start" || a == "--truth-arcs" || a == "--truth-arcs-blend") &&
+    } else if ((a == "--bag" || a == "--ecd" || a == "--config" || a == "--nominal-speed" ||
+                a == "--out" || a == "--events-topic" || a == "--odom-topic" ||
+                a == "--imu-topic" || a == "--image-topic" || a == "--start" ||
+                a == "--truth-arcs" || a == "--truth-arcs-blend") &&
                i + 1 < argc) {
       args[a] = argv[++i];
     } else {
@@ -164,8 +184,8 @@ int main(int argc, char** argv) {
     char* end = nullptr;
     start_s = std::strtod(args["--start"].c_str(), &end);
     if (end == args["--start"].c_str() || *end != '\0' || !(start_s >= 0) || !args.count("--bag")) {
-      std::cerr << "vwe_vo_offline: --start needs a number of seconds >= 0 and a --bag (got '" << args["--start"]
-                << "')\n";
+      std::cerr << "vwe_vo_offline: --start needs a number of seconds >= 0 and a --bag (got '"
+                << args["--start"] << "')\n";
       return 2;
     }
   }
@@ -175,13 +195,15 @@ int main(int argc, char** argv) {
     truth_blend = std::strtod(args["--truth-arcs-blend"].c_str(), &end);
     if (end == args["--truth-arcs-blend"].c_str() || *end != '\0' || !std::isfinite(truth_blend) ||
         !args.count("--truth-arcs") || frontend_only) {
-      std::cerr << "vwe_vo_offline: --truth-arcs-blend needs a finite number, --truth-arcs and the back-end (got '"
+      std::cerr << "vwe_vo_offline: --truth-arcs-blend needs a finite number, --truth-arcs and the "
+                   "back-end (got '"
                 << args["--truth-arcs-blend"] << "')\n";
       return 2;
     }
   }
   if (args.count("--truth-arcs") && frontend_only) {
-    std::cerr << "vwe_vo_offline: --truth-arcs feeds the back-end: it cannot go with --frontend-only\n";
+    std::cerr
+        << "vwe_vo_offline: --truth-arcs feeds the back-end: it cannot go with --frontend-only\n";
     return 2;
   }
   try {
@@ -238,12 +260,14 @@ int main(int argc, char** argv) {
           args.count("--events-topic") ? args["--events-topic"] : "/dvs/events";
       const std::string odom_topic = args.count("--odom-topic") ? args["--odom-topic"] : "/odom";
       const std::string imu_topic = args.count("--imu-topic") ? args["--imu-topic"] : "/dvs/imu";
-      const std::string image_topic = args.count("--image-topic") ? args["--image-topic"] : "/dvs/image_raw";
+      const std::string image_topic =
+          args.count("--image-topic") ? args["--image-topic"] : "/dvs/image_raw";
       rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
       std::vector<std::string> topics = {odom_topic, imu_topic};
       if (!baseline_only) topics.push_back(events_topic);
       if (baseline) topics.push_back(image_topic);
-      const ros::Time begin = rosbag::View(bag, rosbag::TopicQuery(topics)).getBeginTime() + ros::Duration(start_s);
+      const ros::Time begin =
+          rosbag::View(bag, rosbag::TopicQuery(topics)).getBeginTime() + ros::Duration(start_s);
       rosbag::View view(bag, rosbag::TopicQuery(topics), begin);
       const double total = (view.getEndTime() - view.getBeginTime()).toSec();
       size_t packets = 0;
@@ -279,8 +303,12 @@ int main(int argc, char** argv) {
           }
         }
       }
-      input = {{"bag", args["--bag"]}, {"start_s", start_s}, {"event_packets", packets}, {"events_dropped_in_conversion", conv.dropped}};
-      if (baseline && frames == 0) throw std::runtime_error("--baseline: no " + image_topic + " frames in " + args["--bag"]);
+      input = {{"bag", args["--bag"]},
+               {"start_s", start_s},
+               {"event_packets", packets},
+               {"events_dropped_in_conversion", conv.dropped}};
+      if (baseline && frames == 0)
+        throw std::runtime_error("--baseline: no " + image_topic + " frames in " + args["--bag"]);
     }
     if (baseline) input["frames"] = frames;
     pipeline.finish();
@@ -298,7 +326,8 @@ int main(int argc, char** argv) {
             args.count("--events-topic") ? args["--events-topic"] : "/dvs/events";
         rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
         const ros::Time begin =
-            rosbag::View(bag, rosbag::TopicQuery({events_topic})).getBeginTime() + ros::Duration(start_s);
+            rosbag::View(bag, rosbag::TopicQuery({events_topic})).getBeginTime() +
+            ros::Duration(start_s);
         rosbag::View view(bag, rosbag::TopicQuery({events_topic}), begin);
         vwe_vo::EventConversionStats conv;
         for (const rosbag::MessageInstance& m : view)
@@ -315,7 +344,8 @@ int main(int argc, char** argv) {
     {
       const std::string options_path = args["--out"] + "/options.yaml";
       std::ofstream options_file(options_path);
-      options_file << "# The options in use (" << (cfg.path.empty() ? "defaults" : cfg.path) << " and the command line)\n"
+      options_file << "# The options in use (" << (cfg.path.empty() ? "defaults" : cfg.path)
+                   << " and the command line)\n"
                    << YAML::Dump(vwe_vo::optionsToYaml(cfg)) << "\n";
       if (!options_file) throw std::runtime_error(options_path + ": cannot write");
     }
@@ -333,9 +363,12 @@ int main(int argc, char** argv) {
                    r["stages"]["mapping"]["processing_s"].get<double>(), args["--out"].c_str());
     if (baseline) {
       const auto& b = r["stages"]["baseline"];
-      std::fprintf(stderr, "[vwe_vo_offline] baseline: %zu frames, %zu ok, %zu lost, tracked %.2f, %.2f s -> baseline.tum\n",
-                   b["frames"].get<size_t>(), b["frames_ok"].get<size_t>(), b["frames_lost"].get<size_t>(),
-                   b["tracked_fraction"].get<double>(), b["processing_s"].get<double>());
+      std::fprintf(stderr,
+                   "[vwe_vo_offline] baseline: %zu frames, %zu ok, %zu lost, tracked %.2f, %.2f s "
+                   "-> baseline.tum\n",
+                   b["frames"].get<size_t>(), b["frames_ok"].get<size_t>(),
+                   b["frames_lost"].get<size_t>(), b["tracked_fraction"].get<double>(),
+                   b["processing_s"].get<double>());
     }
   } catch (const std::exception& e) {
     std::cerr << "\nvwe_vo_offline: error: " << e.what() << "\n";

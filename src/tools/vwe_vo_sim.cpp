@@ -1,8 +1,13 @@
 // vwe_vo_sim: simulates a standard sequence (events, ground truth, odometry, IMU, depth) and writes
 // it as an Event Camera Dataset folder and/or a rosbag. See --help.
 #include <geometry_msgs/PoseStamped.h>
+#include <nav_msgs/Odometry.h>
+#include <rosbag/bag.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <yaml-cpp/yaml.h>
 
 #include <chrono>
 #include <cmath>
@@ -10,27 +15,21 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
-#include <rosbag/bag.h>
-#include <yaml-cpp/yaml.h>
-#include <nav_msgs/Odometry.h>
-#include <sensor_msgs/Image.h>
-#include <sensor_msgs/Imu.h>
-
-#include "vwe_vo/io/files.h"
-#include "vwe_vo/trajectory/ackermann_arc.h"
-#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/io/config.h"
-#include "vwe_vo/sim/frame_simulator.h"
-#include "vwe_vo/sim/sequences.h"
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/io/trajectory_io.h"
 #include "vwe_vo/ros/conversions.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sim/frame_simulator.h"
+#include "vwe_vo/sim/sequences.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
 
 namespace {
 
@@ -53,13 +52,19 @@ struct Args {
 
 void usage(std::ostream& os) {
   os << "usage: vwe_vo_sim --list\n"
-        "       vwe_vo_sim --sequence NAME --format ecd|bag|ecd,bag --out DIR [--seed N] [--duration S]\n"
-        "                  [--config YAML] [--calib YAML] [--depth-times t1,t2,...] [--images] [--packet-ms MS]\n"
+        "       vwe_vo_sim --sequence NAME --format ecd|bag|ecd,bag --out DIR [--seed N] "
+        "[--duration S]\n"
+        "                  [--config YAML] [--calib YAML] [--depth-times t1,t2,...] [--images] "
+        "[--packet-ms MS]\n"
         "ecd: DIR/events.txt calib.txt groundtruth.txt extrinsics.txt; bag: DIR/NAME.bag\n"
-        "(/dvs/events /dvs/camera_info /gt/pose /odom /dvs/imu [/dvs/image_raw]); always DIR/groundtruth.txt.\n"
-        "--images: 25 Hz mono8 APS frames with motion blur, noise and auto-exposure: /dvs/image_raw in the\n"
-        "bag, DIR/images/frame_NNNNNNNN.png listed in DIR/images.txt (`t images/frame_00000000.png`).\n"
-        "--depth-times: DIR/depth/depth_<t>.png, 16-bit depth z in the camera frame in millimetres\n"
+        "(/dvs/events /dvs/camera_info /gt/pose /odom /dvs/imu [/dvs/image_raw]); always "
+        "DIR/groundtruth.txt.\n"
+        "--images: 25 Hz mono8 APS frames with motion blur, noise and auto-exposure: "
+        "/dvs/image_raw in the\n"
+        "bag, DIR/images/frame_NNNNNNNN.png listed in DIR/images.txt (`t "
+        "images/frame_00000000.png`).\n"
+        "--depth-times: DIR/depth/depth_<t>.png, 16-bit depth z in the camera frame in "
+        "millimetres\n"
         "(0 = nothing hit), listed in DIR/depth/depth_times.txt.\n";
 }
 
@@ -82,16 +87,24 @@ Args parseArgs(int argc, char** argv) {
       if (i + 1 >= argc) throw std::invalid_argument(f + " needs a value");
       return argv[++i];
     };
-    if (f == "--list") a.list = true;
-    else if (f == "--sequence") a.sequence = value();
-    else if (f == "--format") a.format = value();
-    else if (f == "--out") a.out = value();
-    else if (f == "--config") a.config = value();
-    else if (f == "--calib") a.calib = value();
-    else if (f == "--images") a.images = true;
+    if (f == "--list")
+      a.list = true;
+    else if (f == "--sequence")
+      a.sequence = value();
+    else if (f == "--format")
+      a.format = value();
+    else if (f == "--out")
+      a.out = value();
+    else if (f == "--config")
+      a.config = value();
+    else if (f == "--calib")
+      a.calib = value();
+    else if (f == "--images")
+      a.images = true;
     else if (f == "--seed") {
       const double s = parseDouble(f, value());
-      if (s < 0 || s != std::floor(s)) throw std::invalid_argument("--seed must be a non-negative integer");
+      if (s < 0 || s != std::floor(s))
+        throw std::invalid_argument("--seed must be a non-negative integer");
       a.seed = static_cast<uint64_t>(s);
       a.seed_set = true;
     } else if (f == "--duration") {
@@ -99,7 +112,8 @@ Args parseArgs(int argc, char** argv) {
       if (!(a.duration_s > 0)) throw std::invalid_argument("--duration must be > 0");
     } else if (f == "--packet-ms") {
       a.packet_ms = parseDouble(f, value());
-      if (!(a.packet_ms > 0 && a.packet_ms <= 1000)) throw std::invalid_argument("--packet-ms must be in (0, 1000]");
+      if (!(a.packet_ms > 0 && a.packet_ms <= 1000))
+        throw std::invalid_argument("--packet-ms must be in (0, 1000]");
     } else if (f == "--depth-times") {
       std::stringstream ss(value());
       std::string tok;
@@ -142,7 +156,8 @@ int run(const Args& args) {
     spec.seed = args.seed;
     spec.simulator.seed = args.seed;
   }
-  // Calibration and mount: --calib, else the config's camera_calibration, else config/davis346.yaml.
+  // Calibration and mount: --calib, else the config's camera_calibration, else
+  // config/davis346.yaml.
   std::string calib_path = args.calib;
   Pose3 T_base_cam = spec.T_base_cam;
   if (!args.config.empty()) {
@@ -153,7 +168,9 @@ int run(const Args& args) {
         calib_path = root["camera_calibration"].as<std::string>();
         if (!calib_path.empty() && calib_path[0] != '/') {
           const size_t slash = args.config.rfind('/');
-          calib_path = (slash == std::string::npos ? std::string(".") : args.config.substr(0, slash)) + "/" + calib_path;
+          calib_path =
+              (slash == std::string::npos ? std::string(".") : args.config.substr(0, slash)) + "/" +
+              calib_path;
         }
       }
     }
@@ -162,18 +179,20 @@ int run(const Args& args) {
   const CameraCalibration calib = loadCameraCalibrationYaml(calib_path);
   const CameraModel camera(calib);
 
-  const sim::VehicleTrajectory trajectory = sim::VehicleTrajectory::fromProfile(spec.profile, spec.trajectory);
-  const int64_t duration_ns =
-      args.duration_s > 0 ? std::min(trajectory.durationNs(), secToNs(args.duration_s)) : trajectory.durationNs();
+  const sim::VehicleTrajectory trajectory =
+      sim::VehicleTrajectory::fromProfile(spec.profile, spec.trajectory);
+  const int64_t duration_ns = args.duration_s > 0
+                                  ? std::min(trajectory.durationNs(), secToNs(args.duration_s))
+                                  : trajectory.durationNs();
   const sim::Scene scene = sim::buildScene(spec.scene, spec.seed, trajectory);
   sim::EventSimulator simulator(scene, camera, T_base_cam, trajectory, spec.simulator);
 
   const bool want_ecd = args.format.find("ecd") != std::string::npos;
   const bool want_bag = args.format.find("bag") != std::string::npos;
   makeDirs(args.out);
-  std::fprintf(stderr, "[vwe_vo_sim] %s: %s scene (%zu faces), %.1f s, seed %llu, calibration %s\n", spec.name.c_str(),
-               spec.scene.c_str(), scene.faces.size(), nsToSec(duration_ns), static_cast<unsigned long long>(spec.seed),
-               calib_path.c_str());
+  std::fprintf(stderr, "[vwe_vo_sim] %s: %s scene (%zu faces), %.1f s, seed %llu, calibration %s\n",
+               spec.name.c_str(), spec.scene.c_str(), scene.faces.size(), nsToSec(duration_ns),
+               static_cast<unsigned long long>(spec.seed), calib_path.c_str());
 
   rosbag::Bag bag;
   uint32_t packet_seq = 0;
@@ -212,7 +231,8 @@ int run(const Args& args) {
       makeDirs(args.out + "/images");
       images_txt.open(args.out + "/images.txt");
       if (!images_txt) throw std::runtime_error("cannot write " + args.out + "/images.txt");
-      images_txt << "# timestamp [s] filename (mono8 APS frames, 25 Hz, stamp = middle of the exposure)\n";
+      images_txt
+          << "# timestamp [s] filename (mono8 APS frames, 25 Hz, stamp = middle of the exposure)\n";
     }
   }
   for (int64_t t0 = 0; t0 < duration_ns; t0 += chunk_ns) {
@@ -226,14 +246,16 @@ int run(const Args& args) {
       ecd_events->write(shifted);
     }
     if (want_bag) {
-      // Event packets: fixed windows of packet_ns; stamp = window end (the last event's time bound).
+      // Event packets: fixed windows of packet_ns; stamp = window end (the last event's time
+      // bound).
       size_t i = 0;
       for (int64_t w0 = t0; w0 < t1; w0 += packet_ns) {
         const int64_t w1 = std::min(t1, w0 + packet_ns);
         size_t j = i;
         while (j < chunk.size() && chunk[j].t_ns <= w1) ++j;
         if (j > i) {
-          EventArray msg = eventsToMsg(chunk, i, j, calib.width, calib.height, "davis", kEpochNs, w1);
+          EventArray msg =
+              eventsToMsg(chunk, i, j, calib.width, calib.height, "davis", kEpochNs, w1);
           msg.header.seq = packet_seq++;  // numbered as a recording of the driver's publisher
           bag.write("/dvs/events", msg.header.stamp, msg);
         }
@@ -254,16 +276,19 @@ int run(const Args& args) {
       for (; next_imu <= t1; next_imu += 5000000) {
         const int64_t h = 1000000;
         const int64_t ta = std::max<int64_t>(0, next_imu - h), tb = ta + 2 * h;
-        const Pose3 Ta = simulator.T_odom_cam(ta), Tm = simulator.T_odom_cam(ta + h), Tb = simulator.T_odom_cam(tb);
+        const Pose3 Ta = simulator.T_odom_cam(ta), Tm = simulator.T_odom_cam(ta + h),
+                    Tb = simulator.T_odom_cam(tb);
         const Eigen::AngleAxisd aa(Ta.linear().transpose() * Tb.linear());
         const Vec3 w_C = aa.axis() * aa.angle() / (2e-9 * h);
-        const Vec3 a_odom = (Ta.translation() - 2 * Tm.translation() + Tb.translation()) / std::pow(1e-9 * h, 2);
+        const Vec3 a_odom =
+            (Ta.translation() - 2 * Tm.translation() + Tb.translation()) / std::pow(1e-9 * h, 2);
         const Vec3 f_C = Tm.linear().transpose() * (a_odom + Vec3(0, 0, 9.81));
         sensor_msgs::Imu m;
         m.header.stamp = stamp(next_imu);
         m.header.frame_id = "davis";
         m.orientation_covariance[0] = -1;  // no orientation
-        m.angular_velocity = vectorToMsg(w_C + gyro_bias + gyro_sigma * Vec3(n01(rng), n01(rng), n01(rng)));
+        m.angular_velocity =
+            vectorToMsg(w_C + gyro_bias + gyro_sigma * Vec3(n01(rng), n01(rng), n01(rng)));
         m.linear_acceleration = vectorToMsg(f_C + accel_sigma * Vec3(n01(rng), n01(rng), n01(rng)));
         for (int k = 0; k < 3; ++k) {
           m.angular_velocity_covariance[4 * k] = gyro_sigma * gyro_sigma;
@@ -274,8 +299,10 @@ int run(const Args& args) {
       // Wheel odometry, integrated at 1 kHz, published at 50 Hz.
       for (; next_odom_step < t1; next_odom_step += 1000000) {
         const int64_t tm = next_odom_step + 500000;
-        const double v = trajectory.speed(tm) * odom_scale + (trajectory.speed(tm) > 0 ? odom_v_sigma * n01(rng) : 0.0);
-        const double w = trajectory.yawRate(tm) + (trajectory.speed(tm) > 0 ? odom_w_sigma * n01(rng) : 0.0);
+        const double v = trajectory.speed(tm) * odom_scale +
+                         (trajectory.speed(tm) > 0 ? odom_v_sigma * n01(rng) : 0.0);
+        const double w =
+            trajectory.yawRate(tm) + (trajectory.speed(tm) > 0 ? odom_w_sigma * n01(rng) : 0.0);
         const Vec2 d = arcT_Vr_Vt(w, v, 1e-3).translation().head<2>();
         odom_pose.x() += std::cos(odom_pose.z()) * d.x() - std::sin(odom_pose.z()) * d.y();
         odom_pose.y() += std::sin(odom_pose.z()) * d.x() + std::cos(odom_pose.z()) * d.y();
@@ -317,7 +344,8 @@ int run(const Args& args) {
         if (want_ecd) {
           char name[64];
           std::snprintf(name, sizeof(name), "images/frame_%08d.png", n_frames);
-          if (!cv::imwrite(args.out + "/" + name, f.image)) throw std::runtime_error(std::string("cannot write ") + name);
+          if (!cv::imwrite(args.out + "/" + name, f.image))
+            throw std::runtime_error(std::string("cannot write ") + name);
           images_txt << fmt("%.9f", nsToSec(f.t_ns + kEpochNs)) << " " << name << "\n";
         }
         ++n_frames;
@@ -326,48 +354,64 @@ int run(const Args& args) {
     const auto now = std::chrono::steady_clock::now();
     if (std::chrono::duration<double>(now - last_report).count() > 2.0 || t1 == duration_ns) {
       last_report = now;
-      std::fprintf(stderr, "[vwe_vo_sim] t = %6.2f / %.2f s, %.2f M events\n", nsToSec(t1), nsToSec(duration_ns),
-                   n_events * 1e-6);
+      std::fprintf(stderr, "[vwe_vo_sim] t = %6.2f / %.2f s, %.2f M events\n", nsToSec(t1),
+                   nsToSec(duration_ns), n_events * 1e-6);
     }
   }
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  const double wall =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   if (want_bag) bag.close();
 
   // Ground truth at 200 Hz, always; ECD files.
   Trajectory3 gt;
-  for (int64_t t = 0; t <= duration_ns; t += 5000000) gt.push_back({t + kEpochNs, trajectory.T_odom_base(t)});
+  for (int64_t t = 0; t <= duration_ns; t += 5000000)
+    gt.push_back({t + kEpochNs, trajectory.T_odom_base(t)});
   writeTum(args.out + "/groundtruth.txt", gt);
   if (want_ecd) {
     ecd_events.reset();
-    EcdCalibration ec{calib.fx, calib.fy, calib.cx, calib.cy, calib.distortion[0], calib.distortion[1],
-                      calib.distortion[2], calib.distortion[3], calib.distortion[4]};
+    EcdCalibration ec{calib.fx,
+                      calib.fy,
+                      calib.cx,
+                      calib.cy,
+                      calib.distortion[0],
+                      calib.distortion[1],
+                      calib.distortion[2],
+                      calib.distortion[3],
+                      calib.distortion[4]};
     writeEcdCalibration(args.out + "/calib.txt", ec);
     writePoseLine(args.out + "/extrinsics.txt", T_base_cam);
   }
   if (!args.depth_times.empty()) {
     makeDirs(args.out + "/depth");
     std::ofstream list(args.out + "/depth/depth_times.txt");
-    list << "# t[s] file (16-bit PNG, depth z in the camera frame in millimetres, 0 = nothing hit)\n";
+    list << "# t[s] file (16-bit PNG, depth z in the camera frame in millimetres, 0 = nothing "
+            "hit)\n";
     for (double t : args.depth_times) {
       const int64_t t_ns = secToNs(t);
-      if (t_ns > trajectory.durationNs()) throw std::invalid_argument("--depth-times: " + fmt("%g", t) + " s is after the sequence end");
+      if (t_ns > trajectory.durationNs())
+        throw std::invalid_argument("--depth-times: " + fmt("%g", t) +
+                                    " s is after the sequence end");
       const cv::Mat1f z = simulator.depthMap(t_ns);
       cv::Mat1w mm(z.rows, z.cols);
       for (int y = 0; y < z.rows; ++y)
-        for (int x = 0; x < z.cols; ++x) mm(y, x) = static_cast<uint16_t>(std::clamp(std::lround(z(y, x) * 1000.0), 0L, 65535L));
+        for (int x = 0; x < z.cols; ++x)
+          mm(y, x) = static_cast<uint16_t>(std::clamp(std::lround(z(y, x) * 1000.0), 0L, 65535L));
       const std::string name = "depth_" + fmt("%.6f", t) + ".png";
-      if (!cv::imwrite(args.out + "/depth/" + name, mm)) throw std::runtime_error("cannot write " + name);
+      if (!cv::imwrite(args.out + "/depth/" + name, mm))
+        throw std::runtime_error("cannot write " + name);
       list << fmt("%.9f", nsToSec(t_ns + kEpochNs)) << " " << name << "\n";
     }
   }
   const double sim_s = nsToSec(duration_ns);
   const auto& st = simulator.stats();
-  std::fprintf(stderr,
-               "[vwe_vo_sim] done: %llu events (%llu noise, %llu refractory drops), %.0f events/s simulated, "
-               "%llu renders, wall %.2f s, real-time factor %.3f (path %.1f m)\n",
-               static_cast<unsigned long long>(n_events), static_cast<unsigned long long>(st.noise_events),
-               static_cast<unsigned long long>(st.refractory_drops), n_events / sim_s,
-               static_cast<unsigned long long>(st.renders), wall, wall / sim_s, trajectory.pathLength());
+  std::fprintf(
+      stderr,
+      "[vwe_vo_sim] done: %llu events (%llu noise, %llu refractory drops), %.0f events/s "
+      "simulated, "
+      "%llu renders, wall %.2f s, real-time factor %.3f (path %.1f m)\n",
+      static_cast<unsigned long long>(n_events), static_cast<unsigned long long>(st.noise_events),
+      static_cast<unsigned long long>(st.refractory_drops), n_events / sim_s,
+      static_cast<unsigned long long>(st.renders), wall, wall / sim_s, trajectory.pathLength());
   return 0;
 }
 

@@ -654,7 +654,8 @@ Pose3 BSplineCameraModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
     const PlanarLocalJacobian lj = planarLocalJacobian(R_V, T_base_cam_);
     jac->clear();
     for (int s = 0; s < n; ++s)
-      jac->add(index[s], a[s] * lj.dR_dpsi, a[s] * lj.dt_dpsi + lj.dt_dx * b[s].x() + lj.dt_dy * b[s].y());
+      jac->add(index[s], a[s] * lj.dR_dpsi,
+               a[s] * lj.dt_dpsi + lj.dt_dx * b[s].x() + lj.dt_dy * b[s].y());
   }
   return vehicleToCamera(T_Vr_Vt, T_base_cam_);
 }
@@ -668,14 +669,17 @@ Pose3 BSplineCameraModel::T_Cr_CtPlanar(int64_t t_ns, PlanarLocalJacobian* jac) 
   return vehicleToCamera(makePose(R_V, Vec3(p_rel.x(), p_rel.y(), 0.0)), T_base_cam_);
 }
 
-void BSplineCameraModel::addPlanarGradient(const std::vector<int64_t>& t_ns, const std::vector<Vec3>& g,
+void BSplineCameraModel::addPlanarGradient(const std::vector<int64_t>& t_ns,
+                                           const std::vector<Vec3>& g,
                                            Eigen::VectorXd* gradient) const {
   if (t_ns.size() != g.size())
-    throw std::invalid_argument("BSplineCameraModel::addPlanarGradient: " + std::to_string(t_ns.size()) +
-                                " times but " + std::to_string(g.size()) + " derivatives");
+    throw std::invalid_argument(
+        "BSplineCameraModel::addPlanarGradient: " + std::to_string(t_ns.size()) + " times but " +
+        std::to_string(g.size()) + " derivatives");
   if (gradient->size() != numParams())
     throw std::invalid_argument("BSplineCameraModel::addPlanarGradient: gradient of size " +
-                                std::to_string(gradient->size()) + ", expected " + std::to_string(numParams()));
+                                std::to_string(gradient->size()) + ", expected " +
+                                std::to_string(numParams()));
   Reference fresh;
   const Reference& ref = reference(&fresh);
   // psi_rel = psi_t - psi_r and p_rel = R_r^T (p_t - p_r): the control points at t enter through

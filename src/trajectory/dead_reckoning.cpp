@@ -39,7 +39,8 @@ Pose3 ArcChain::T_odom_base(int64_t t_ns) const {
 }
 
 void appendRamp(ArcChain* chain, const Rates& from, const Rates& to, int64_t t_end_ns, int pieces) {
-  if (pieces < 1) throw std::invalid_argument("appendRamp: pieces " + std::to_string(pieces) + " < 1");
+  if (pieces < 1)
+    throw std::invalid_argument("appendRamp: pieces " + std::to_string(pieces) + " < 1");
   const int64_t t0 = chain->endTime();
   for (int k = 0; k < pieces; ++k) {
     const Rates r = rampRates(from, to, (k + 0.5) / pieces);
@@ -85,7 +86,8 @@ void ArcDeadReckoning::append(const Rates& rates, bool standstill, int64_t from_
     ramped_.append(rates.omega, rates.v, t_end_ns);
   } else if (standstill) {
     // The moving arc before keeps its rates to its end; the standstill holds the pose.
-    if (has_last_rates_ && from_ns > ramped_.endTime()) ramped_.append(last_.omega, last_.v, from_ns);
+    if (has_last_rates_ && from_ns > ramped_.endTime())
+      ramped_.append(last_.omega, last_.v, from_ns);
     ramped_.append(0.0, 0.0, t_end_ns);
     has_last_rates_ = false;
   } else {
@@ -111,9 +113,8 @@ Pose3 fitAnchorOnSpline(const BSpline& spline, const ArcChain& chain, int64_t t_
                         double span_s) {
   const Pose3 T_end =
       anchorOnSplinePose(spline, spline.toSplineTime(t_end_ns), chain.T_odom_base(t_end_ns));
-  const int64_t t_from =
-      std::max({t_end_ns - secToNs(span_s), chain.startTime(),
-                spline.epochNs() + secToNs(spline.validFrom())});
+  const int64_t t_from = std::max({t_end_ns - secToNs(span_s), chain.startTime(),
+                                   spline.epochNs() + secToNs(spline.validFrom())});
   constexpr int kSamples = 21;
   if (t_end_ns - t_from < secToNs(0.05)) return T_end;
   std::vector<Vec2> q(kSamples), p(kSamples);

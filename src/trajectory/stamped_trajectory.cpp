@@ -14,7 +14,8 @@ bool interpolateTrajectory(const Trajectory3& traj, int64_t t_ns, Pose3* T) {
   }
   const StampedPose& b = *it;
   const StampedPose& a = *(it - 1);
-  *T = interpolatePose(a.T, b.T, static_cast<double>(t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns));
+  *T = interpolatePose(a.T, b.T,
+                       static_cast<double>(t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns));
   return true;
 }
 

@@ -37,7 +37,8 @@ void VolumeOptions::validate(const std::string& section) const {
   if (!(pose_slice_s >= 0 && pose_slice_s <= 0.01)) fail("pose_slice_s must be in [0, 0.01]");
 }
 
-bool makeVolumeRay(const Vec3& o, const Vec3& d, double fx, double fy, double cx, double cy, VolumeRay* ray) {
+bool makeVolumeRay(const Vec3& o, const Vec3& d, double fx, double fy, double cx, double cy,
+                   VolumeRay* ray) {
   if (!(d.z() > 1e-9)) return false;
   const double ax = d.x() / d.z(), ay = d.y() / d.z();
   ray->u0 = float(fx * ax + cx);
@@ -49,13 +50,13 @@ bool makeVolumeRay(const Vec3& o, const Vec3& d, double fx, double fy, double cx
   return true;
 }
 
-ProjectiveVolume::ProjectiveVolume(const VolumeOptions& options, int sensor_width, int sensor_height, double fx,
-                                   double fy, double cx, double cy)
+ProjectiveVolume::ProjectiveVolume(const VolumeOptions& options, int sensor_width,
+                                   int sensor_height, double fx, double fy, double cx, double cy)
     : options_(options), pool_(options.num_threads) {
   options_.validate();
   if (sensor_width <= 0 || sensor_height <= 0 || !(fx > 0) || !(fy > 0))
-    throw std::invalid_argument("ProjectiveVolume: invalid sensor " + std::to_string(sensor_width) + "x" +
-                                std::to_string(sensor_height) + " or focal length");
+    throw std::invalid_argument("ProjectiveVolume: invalid sensor " + std::to_string(sensor_width) +
+                                "x" + std::to_string(sensor_height) + " or focal length");
   const double s = options_.grid_scale;
   const int m = options_.margin_px;
   width_ = int(std::ceil(sensor_width * s)) + 2 * m;
@@ -82,7 +83,8 @@ inline void ProjectiveVolume::forEachPlaneVote(const VolumeRay& r, float rho, Fn
 }
 
 template <typename Fn>
-inline void ProjectiveVolume::forEachPlaneVoteBatched(float rho, size_t begin, size_t end, Fn&& fn) const {
+inline void ProjectiveVolume::forEachPlaneVoteBatched(float rho, size_t begin, size_t end,
+                                                      Fn&& fn) const {
   // The same arithmetic as forEachPlaneVote(), on the rays' columns a batch at a time: the
   // first loop has no branches and vectorises, the second only touches the grid.
   constexpr int kBatch = 64;
@@ -114,7 +116,8 @@ inline void ProjectiveVolume::forEachPlaneVoteBatched(float rho, size_t begin, s
 template <typename Fn>
 inline void ProjectiveVolume::forEachVote(const VolumeRay& r, int l, Fn&& fn) const {
   const size_t offset = size_t(l) * width_ * height_;
-  forEachPlaneVote(r, float(rho_[l]), [&](size_t idx, float ax, float ay) { fn(offset + idx, ax, ay); });
+  forEachPlaneVote(r, float(rho_[l]),
+                   [&](size_t idx, float ax, float ay) { fn(offset + idx, ax, ay); });
 }
 
 double ProjectiveVolume::peakDepth(const VolumeRay& ray) const {
@@ -125,7 +128,8 @@ double ProjectiveVolume::peakDepth(const VolumeRay& ray) const {
   for (int l = 0; l < options_.num_planes; ++l)
     forEachVote(ray, l, [&](size_t idx, float ax, float ay) {
       const float* g = grid_.data() + idx;
-      const float value = (1 - ax) * (1 - ay) * g[0] + ax * (1 - ay) * g[1] + (1 - ax) * ay * g[W] + ax * ay * g[W + 1];
+      const float value = (1 - ax) * (1 - ay) * g[0] + ax * (1 - ay) * g[1] + (1 - ax) * ay * g[W] +
+                          ax * ay * g[W + 1];
       if (value > best) best = value, best_l = l;
     });
   return best_l < 0 ? 0.0 : planeDepth(best_l);
@@ -211,7 +215,8 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
         forEachPlaneVoteBatched(rho, 0, soa_.size, [&](size_t, size_t idx, float ax, float ay) {
           float* c0 = g + idx;
           float* c1 = c0 + W;
-          const float w00 = (1 - ax) * (1 - ay), w10 = ax * (1 - ay), w01 = (1 - ax) * ay, w11 = ax * ay;
+          const float w00 = (1 - ax) * (1 - ay), w10 = ax * (1 - ay), w01 = (1 - ax) * ay,
+                      w11 = ax * ay;
           const float v00 = c0[0], v10 = c0[1], v01 = c1[0], v11 = c1[1];
           q0 += double(w00 * (2 * v00 + w00) + w10 * (2 * v10 + w10));
           q1 += double(w01 * (2 * v01 + w01) + w11 * (2 * v11 + w11));
@@ -252,8 +257,9 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
   if (votes) *votes = n;
   if (sensitivities) {
     // d(sum V^2) = 2 sum_votes grad V . du; sum V = n does not move (see the header).
-    const double scale =
-        options_.contrast == Contrast::kDensityPerVote ? (n > 0 ? 2.0 / double(n) : 0.0) : 2.0 / double(numVoxels());
+    const double scale = options_.contrast == Contrast::kDensityPerVote
+                             ? (n > 0 ? 2.0 / double(n) : 0.0)
+                             : 2.0 / double(numVoxels());
     sensitivities->assign(N, Eigen::Vector4d::Zero());
     for (const auto& acc : chunk_sens_)
       for (size_t i = 0; i < N; ++i) (*sensitivities)[i] += acc[i];
@@ -317,7 +323,8 @@ double ProjectiveVolume::clear(const std::vector<VolumeRay>& rays) {
   if (!dense) soa_.assign(rays);
   pool_.run(L, [&](int l, int) {
     // Dense votes: every plane is swept; sparse: takeSquares() visits the votes.
-    plane_squares_[size_t(l)] = takeSquares(grid_.data() + size_t(l) * plane_voxels, float(rho_[l]), dense);
+    plane_squares_[size_t(l)] =
+        takeSquares(grid_.data() + size_t(l) * plane_voxels, float(rho_[l]), dense);
   });
   double q = 0.0;
   for (double p : plane_squares_) q += p;

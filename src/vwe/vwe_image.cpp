@@ -1,14 +1,14 @@
 #include "vwe_vo/vwe/vwe_image.h"
-#include "vwe_vo/common/validated.h"
 
 #include <algorithm>
+
+#include "vwe_vo/common/validated.h"
 
 namespace vwe_vo {
 
 VweImageRenderer::VweImageRenderer(const CameraModel& camera, const VolumeOptions& options)
-    : volume_(validated(options), camera.width(), camera.height(),
-              camera.calibration().fx, camera.calibration().fy, camera.calibration().cx,
-              camera.calibration().cy),
+    : volume_(validated(options), camera.width(), camera.height(), camera.calibration().fx,
+              camera.calibration().fy, camera.calibration().cx, camera.calibration().cy),
       objective_(camera, &volume_) {}
 
 cv::Mat VweImageRenderer::maxProjection(const EventVector& events, const TrajectoryModel& model) {

@@ -1,9 +1,10 @@
 #include "vwe_vo/vwe/vwe_objective.h"
-#include "vwe_vo/common/validated.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+
+#include "vwe_vo/common/validated.h"
 
 namespace vwe_vo {
 
@@ -25,8 +26,8 @@ EventVector subsampleEvents(const EventVector& events, size_t max_events, uint64
   return out;
 }
 
-EventVector subsampleEventsPerTimeSlice(const EventVector& events, int64_t t0_ns, int64_t t1_ns, size_t max_events,
-                                        int bins, uint64_t seed) {
+EventVector subsampleEventsPerTimeSlice(const EventVector& events, int64_t t0_ns, int64_t t1_ns,
+                                        size_t max_events, int bins, uint64_t seed) {
   if (bins <= 1 || t1_ns <= t0_ns) return subsampleEvents(events, max_events, seed);
   EventVector out;
   out.reserve(max_events);
@@ -50,8 +51,8 @@ VweObjective::VweObjective(const CameraModel& camera, ProjectiveVolume* volume)
 namespace {
 // d[u0, du, v0, dv] of the VolumeRay of (o, d) (ax, ay = d_x / d_z, d_y / d_z) for a pose
 // derivative that moves the direction by dd and the origin by dto.
-inline Eigen::Vector4d rayDerivative(const Vec3& o, const Vec3& d, double ax, double ay, const Vec3& dd,
-                                     const Vec3& dto, double fx, double fy) {
+inline Eigen::Vector4d rayDerivative(const Vec3& o, const Vec3& d, double ax, double ay,
+                                     const Vec3& dd, const Vec3& dto, double fx, double fy) {
   const double dax = (dd.x() - ax * dd.z()) / d.z();
   const double day = (dd.y() - ay * dd.z()) / d.z();
   const double dbx = dto.x() - dto.z() * ax - o.z() * dax;
@@ -60,8 +61,8 @@ inline Eigen::Vector4d rayDerivative(const Vec3& o, const Vec3& d, double ax, do
 }
 }  // namespace
 
-void VweObjective::buildChunk(const EventVector& events, size_t begin, size_t end, const TrajectoryModel& model,
-                              bool with_jacobian, Chunk* out) const {
+void VweObjective::buildChunk(const EventVector& events, size_t begin, size_t end,
+                              const TrajectoryModel& model, bool with_jacobian, Chunk* out) const {
   out->rays.clear();
   out->jac_count.clear();
   out->jac_param.clear();
@@ -120,15 +121,16 @@ void VweObjective::buildChunk(const EventVector& events, size_t begin, size_t en
   }
 }
 
-VweEvaluation VweObjective::buildRays(const EventVector& events, const TrajectoryModel& model, bool with_jacobian) {
+VweEvaluation VweObjective::buildRays(const EventVector& events, const TrajectoryModel& model,
+                                      bool with_jacobian) {
   // Chunk boundaries from the event count only (results independent of the threads).
   constexpr size_t kEventsPerChunk = 1024, kMaxChunks = 16;
   const size_t N = events.size();
   const size_t num_chunks = std::max<size_t>(1, std::min(kMaxChunks, N / kEventsPerChunk));
   if (chunks_.size() < num_chunks) chunks_.resize(num_chunks);
   pool_.run(int(num_chunks), [&](int c, int) {
-    buildChunk(events, N * size_t(c) / num_chunks, N * size_t(c + 1) / num_chunks, model, with_jacobian,
-               &chunks_[size_t(c)]);
+    buildChunk(events, N * size_t(c) / num_chunks, N * size_t(c + 1) / num_chunks, model,
+               with_jacobian, &chunks_[size_t(c)]);
   });
   VweEvaluation ev;
   rays_.clear();
@@ -182,7 +184,8 @@ VweEvaluation VweObjective::evaluate(const EventVector& events, const Trajectory
     }
     for (size_t i = 0; i < rays_.size(); ++i) {
       const Eigen::Vector4d& s = sensitivities_[i];
-      for (int j = jac_begin_[i]; j < jac_begin_[i + 1]; ++j) (*gradient)[jac_param_[j]] += s.dot(jac_value_[j]);
+      for (int j = jac_begin_[i]; j < jac_begin_[i + 1]; ++j)
+        (*gradient)[jac_param_[j]] += s.dot(jac_value_[j]);
     }
   }
   return ev;
@@ -194,11 +197,13 @@ VweObjectivePool::VweObjectivePool(const CameraModel& camera, const VolumeOption
   single.num_threads = 1;
   const CameraCalibration& c = camera.calibration();
   for (int t = 0; t < pool_.numThreads(); ++t) {
-    volumes_.push_back(std::make_unique<ProjectiveVolume>(single, c.width, c.height, c.fx, c.fy, c.cx, c.cy));
+    volumes_.push_back(
+        std::make_unique<ProjectiveVolume>(single, c.width, c.height, c.fx, c.fy, c.cx, c.cy));
     objectives_.push_back(std::make_unique<VweObjective>(camera, volumes_.back().get()));
   }
   if (pool_.numThreads() > 1) {
-    wide_volume_ = std::make_unique<ProjectiveVolume>(options, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
+    wide_volume_ =
+        std::make_unique<ProjectiveVolume>(options, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
     wide_objective_ = std::make_unique<VweObjective>(camera, wide_volume_.get());
   }
 }

@@ -18,8 +18,9 @@ namespace synthetic {
 /// [t_ref - half_span, t_ref + half_span], sorted: each event is a random point projected at a
 /// random time and rounded to the nearest pixel. If point_index is not null it receives, per
 /// event, the index of the point that made it.
-inline EventVector pointEvents(const CameraModel& cam, const TrajectoryModel& truth, const std::vector<Vec3>& points,
-                               int n, std::mt19937* rng, double half_span_s, std::vector<int>* point_index = nullptr) {
+inline EventVector pointEvents(const CameraModel& cam, const TrajectoryModel& truth,
+                               const std::vector<Vec3>& points, int n, std::mt19937* rng,
+                               double half_span_s, std::vector<int>* point_index = nullptr) {
   std::uniform_real_distribution<double> ut(-half_span_s, half_span_s);
   std::vector<std::pair<PixelEvent, int>> made;
   int attempts = 0;
@@ -38,7 +39,8 @@ inline EventVector pointEvents(const CameraModel& cam, const TrajectoryModel& tr
     e.polarity = ((*rng)() & 1) ? 1 : -1;
     made.emplace_back(e, k);
   }
-  std::stable_sort(made.begin(), made.end(), [](const auto& a, const auto& b) { return a.first.t_ns < b.first.t_ns; });
+  std::stable_sort(made.begin(), made.end(),
+                   [](const auto& a, const auto& b) { return a.first.t_ns < b.first.t_ns; });
   EventVector events;
   events.reserve(made.size());
   if (point_index) point_index->clear();
@@ -63,8 +65,8 @@ inline std::vector<Vec3> randomPoints(std::mt19937* rng, int num_points) {
 /// n events of `num_points` random points (depth 1-8 m, inside the field of view of the
 /// reference camera) at uniform times in [t_ref - half_span, t_ref + half_span], sorted.
 /// If points_out is not null it receives the points (reference camera frame).
-inline EventVector randomPointEvents(const CameraModel& cam, const TrajectoryModel& truth, int n, unsigned seed,
-                                     double half_span_s = 0.15, int num_points = 400,
+inline EventVector randomPointEvents(const CameraModel& cam, const TrajectoryModel& truth, int n,
+                                     unsigned seed, double half_span_s = 0.15, int num_points = 400,
                                      std::vector<Vec3>* points_out = nullptr,
                                      std::vector<int>* point_index = nullptr) {
   std::mt19937 rng(seed);
@@ -75,11 +77,12 @@ inline EventVector randomPointEvents(const CameraModel& cam, const TrajectoryMod
 
 /// num_points random points on the plane z = depth_m of the reference camera, spread over
 /// x in [-half_width, half_width], y in [-half_height, half_height] [m] (a textured frontal wall).
-inline std::vector<Vec3> frontalWallPoints(std::mt19937* rng, int num_points, double depth_m, double half_width_m,
-                                           double half_height_m) {
+inline std::vector<Vec3> frontalWallPoints(std::mt19937* rng, int num_points, double depth_m,
+                                           double half_width_m, double half_height_m) {
   std::uniform_real_distribution<double> u(-1, 1);
   std::vector<Vec3> points;
-  for (int i = 0; i < num_points; ++i) points.emplace_back(u(*rng) * half_width_m, u(*rng) * half_height_m, depth_m);
+  for (int i = 0; i < num_points; ++i)
+    points.emplace_back(u(*rng) * half_width_m, u(*rng) * half_height_m, depth_m);
   return points;
 }
 

@@ -13,8 +13,8 @@
 
 #include "../common/synthetic_events.h"
 #include "vwe_vo/backend/backend.h"
-#include "vwe_vo/pipeline/offline_pipeline.h"
 #include "vwe_vo/io/options_yaml.h"
+#include "vwe_vo/pipeline/offline_pipeline.h"
 
 using namespace vwe_vo;
 
@@ -90,7 +90,8 @@ struct Scene {
 /// The pipeline's order: the events up to the arc's end (from index *next on), then the arc.
 void feed(Backend* backend, const EventVector& events, size_t* next, const ArcEstimate& arc) {
   EventVector chunk;
-  while (*next < events.size() && events[*next].t_ns <= arc.t_end_ns) chunk.push_back(events[(*next)++]);
+  while (*next < events.size() && events[*next].t_ns <= arc.t_end_ns)
+    chunk.push_back(events[(*next)++]);
   backend->addEvents(chunk);
   backend->addArc(arc);
   backend->process();
@@ -125,14 +126,16 @@ double headingChangeError(const BSpline& est, const BSpline& truth, double u0, d
 /// are taken of this reference.
 /// slice_ns > 0: every event takes the pose at the middle of its slice of that length on the
 /// grid of absolute times (VolumeOptions::pose_slice_s), unless the spline ends before it.
-double referenceObjective(const CameraModel& cam, const ProjectiveVolume& volume, const BSpline& spline,
-                          const std::vector<BackendVolume>& volumes, int64_t slice_ns) {
+double referenceObjective(const CameraModel& cam, const ProjectiveVolume& volume,
+                          const BSpline& spline, const std::vector<BackendVolume>& volumes,
+                          int64_t slice_ns) {
   const int W = volume.width(), H = volume.height(), L = volume.numPlanes();
   std::vector<double> grid(size_t(W) * H * L);
   double total = 0.0;
   for (const BackendVolume& bv : volumes) {
     std::fill(grid.begin(), grid.end(), 0.0);
-    const BSplineCameraModel model(std::make_shared<BSpline>(spline), testExtrinsics(), bv.t_ref_ns);
+    const BSplineCameraModel model(std::make_shared<BSpline>(spline), testExtrinsics(),
+                                   bv.t_ref_ns);
     for (const PixelEvent& e : bv.events) {
       if (!model.covers(e.t_ns)) continue;
       int64_t t = e.t_ns;
@@ -148,7 +151,8 @@ double referenceObjective(const CameraModel& cam, const ProjectiveVolume& volume
         const double z = 1.0 / volume.planeInverseDepth(l), lambda = (z - o.z()) / d.z();
         if (!(lambda > 0)) continue;
         const Vec3 X = o + lambda * d;
-        const double u = volume.fx() * X.x() / z + volume.cx(), v = volume.fy() * X.y() / z + volume.cy();
+        const double u = volume.fx() * X.x() / z + volume.cx(),
+                     v = volume.fy() * X.y() / z + volume.cy();
         if (!(u >= 0 && v >= 0 && u < W - 1 && v < H - 1)) continue;
         const int ix = int(u), iy = int(v);
         const double ax = u - ix, ay = v - iy;
@@ -162,7 +166,8 @@ double referenceObjective(const CameraModel& cam, const ProjectiveVolume& volume
     double sum = 0.0, sq = 0.0;
     for (double g : grid) sum += g, sq += g * g;
     const double n = double(grid.size());
-    total += volume.options().contrast == Contrast::kVariance ? sq / n - (sum / n) * (sum / n) : sq / sum;
+    total += volume.options().contrast == Contrast::kVariance ? sq / n - (sum / n) * (sum / n)
+                                                              : sq / sum;
   }
   return total;
 }
@@ -241,8 +246,10 @@ TEST_P(BackendContrast, MultiVolumeGradientMatchesCentralFiniteDifferences) {
   }
   const double rel_norm = (g - fd).norm() / fd.norm();
   EXPECT_LT(rel_norm, 1e-3);
-  std::printf("[backend] FD check: %d free params, |g - fd| / |fd| = %.2e, max per component %.2e of |fd|\n",
-              int(x0.size()), rel_norm, max_rel);
+  std::printf(
+      "[backend] FD check: %d free params, |g - fd| / |fd| = %.2e, max per component %.2e of "
+      "|fd|\n",
+      int(x0.size()), rel_norm, max_rel);
   // The fixed control points are not touched.
   obj.evaluate(x0, nullptr);
   for (int i = 0; i < first_free; ++i)
@@ -251,11 +258,13 @@ TEST_P(BackendContrast, MultiVolumeGradientMatchesCentralFiniteDifferences) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Backend, BackendContrast,
-                         ::testing::Combine(::testing::Values(Contrast::kDensityPerVote, Contrast::kVariance),
+                         ::testing::Combine(::testing::Values(Contrast::kDensityPerVote,
+                                                              Contrast::kVariance),
                                             ::testing::Values(0.0, 0.0005)),
                          [](const ::testing::TestParamInfo<std::tuple<Contrast, double>>& info) {
-                           return std::string(std::get<0>(info.param) == Contrast::kVariance ? "Variance"
-                                                                                              : "DensityPerVote") +
+                           return std::string(std::get<0>(info.param) == Contrast::kVariance
+                                                  ? "Variance"
+                                                  : "DensityPerVote") +
                                   (std::get<1>(info.param) > 0 ? "Sliced" : "PerEvent");
                          });
 
@@ -282,7 +291,8 @@ TEST(Backend, PlanarJacobianGivesTheGradientOfTheFullPoseJacobian) {
   VweObjectivePool vwe(sc.cam, vo);
   auto spline = std::make_shared<BSpline>(*sc.truth);
   for (int i = 0; i < spline->numControlPoints(); ++i)
-    spline->setControlPoint(i, spline->controlPoints()[i] + 0.01 * Vec2(std::sin(2.0 * i), std::cos(3.0 * i)));
+    spline->setControlPoint(
+        i, spline->controlPoints()[i] + 0.01 * Vec2(std::sin(2.0 * i), std::cos(3.0 * i)));
   for (const std::vector<BSpline::Interval>& still :
        {std::vector<BSpline::Interval>{}, std::vector<BSpline::Interval>{{1.0, 1.4}, {2.0, 2.3}}}) {
     spline->setStandstills(still);
@@ -315,8 +325,9 @@ TEST(Backend, PlanarJacobianGivesTheGradientOfTheFullPoseJacobian) {
 
 /// Moves the free control points of `spline` by up to `move_m`, then checks the prior's analytic
 /// gradient against central differences (tolerance relative to the gradient's norm).
-static void expectGradientMatchesCentralDifferences(BSpline* spline, int first_free, const SplinePrior& prior,
-                                                    double move_m, double rel_tol) {
+static void expectGradientMatchesCentralDifferences(BSpline* spline, int first_free,
+                                                    const SplinePrior& prior, double move_m,
+                                                    double rel_tol) {
   for (int i = first_free; i < spline->numControlPoints(); ++i)
     spline->setControlPoint(
         i, spline->controlPoints()[i] + move_m * Vec2(std::cos(2.0 * i), std::sin(7.0 * i)));
@@ -479,7 +490,9 @@ TEST(Backend, ContinuousOdometryHasNoJumpsAtRefinements) {
   size_t e = 0, outputs = 0;
   double max_raw_step = 0, max_continuous_step = 0, max_increment_error = 0;
   Pose3 raw_prev = Pose3::Identity(), out_prev = Pose3::Identity(), out_first = Pose3::Identity();
-  const auto truthAt = [&](int64_t t_ns) { return sc.truth->T_odom_base(sc.truth->toSplineTime(t_ns)); };
+  const auto truthAt = [&](int64_t t_ns) {
+    return sc.truth->T_odom_base(sc.truth->toSplineTime(t_ns));
+  };
   const int64_t t_first = next;
   int64_t t_last = next;
   for (const ArcEstimate& a : arcs) {
@@ -491,10 +504,13 @@ TEST(Backend, ContinuousOdometryHasNoJumpsAtRefinements) {
       ASSERT_TRUE(out.matrix().allFinite());
       if (outputs > 0) {
         max_raw_step = std::max(max_raw_step, (raw.translation() - raw_prev.translation()).norm());
-        max_continuous_step = std::max(max_continuous_step, (out.translation() - out_prev.translation()).norm());
+        max_continuous_step =
+            std::max(max_continuous_step, (out.translation() - out_prev.translation()).norm());
         // Each increment is the true motion over the step, up to the estimation error.
-        const Pose3 d_truth = truthAt(next - step).inverse() * truthAt(next), d_out = out_prev.inverse() * out;
-        max_increment_error = std::max(max_increment_error, (d_truth.translation() - d_out.translation()).norm());
+        const Pose3 d_truth = truthAt(next - step).inverse() * truthAt(next),
+                    d_out = out_prev.inverse() * out;
+        max_increment_error =
+            std::max(max_increment_error, (d_truth.translation() - d_out.translation()).norm());
       } else {
         out_first = out;
       }
@@ -506,19 +522,23 @@ TEST(Backend, ContinuousOdometryHasNoJumpsAtRefinements) {
   }
   // Composed, the increments turn as the truth does between the same times.
   const double turn_error_deg =
-      kDegPerRad * std::abs(wrapAngle(yawOf((out_first.inverse() * out_prev).linear()) -
-                                    yawOf((truthAt(t_first).inverse() * truthAt(t_last)).linear())));
-  std::printf("[backend] odometry: %zu poses, largest step %.4f m raw, %.4f m continuous (%.4f m at %.1f m/s); "
-              "increments off the truth by %.5f m at most, composed turn off by %.3f deg\n",
-              outputs, max_raw_step, max_continuous_step, kSpeed * 0.02, kSpeed, max_increment_error, turn_error_deg);
+      kDegPerRad *
+      std::abs(wrapAngle(yawOf((out_first.inverse() * out_prev).linear()) -
+                         yawOf((truthAt(t_first).inverse() * truthAt(t_last)).linear())));
+  std::printf(
+      "[backend] odometry: %zu poses, largest step %.4f m raw, %.4f m continuous (%.4f m at %.1f "
+      "m/s); "
+      "increments off the truth by %.5f m at most, composed turn off by %.3f deg\n",
+      outputs, max_raw_step, max_continuous_step, kSpeed * 0.02, kSpeed, max_increment_error,
+      turn_error_deg);
   EXPECT_GE(backend.stats().updates, 3u);
   EXPECT_GT(outputs, 100u);
   // 0.4 m/s x 20 ms = 8 mm a step: the continuous stream never moves more than that (+5 %) ...
   EXPECT_LT(max_continuous_step, 1.05 * kSpeed * 0.02);
   // ... while the re-anchored poses jump at refinements (what the test guards against).
   EXPECT_GT(max_raw_step, 1.25 * kSpeed * 0.02);  // measured 1.6x
-  EXPECT_LT(max_increment_error, 1.0);  // measured
-  EXPECT_LT(turn_error_deg, 100.0);        // measured (the arcs' bias alone: 9.6 deg)
+  EXPECT_LT(max_increment_error, 1.0);            // measured
+  EXPECT_LT(turn_error_deg, 100.0);               // measured (the arcs' bias alone: 9.6 deg)
 }
 
 /// The k-th 0.3 s front-end window from kEpoch as an arc at 0.4 m/s.
@@ -550,13 +570,15 @@ TEST(Backend, InitialGuessRampsTheRatesBetweenTheArcsMiddlesOdometryKeepsEachArc
     double max_heading_error = 0.0;
     for (const auto& sample : ramp) {
       if (sample.t_ns > arcs.back().t_ref_ns) break;
-      max_heading_error = std::max(max_heading_error, std::abs(wrapAngle(
-          yawOf(b.initialGuess(sample.t_ns).linear()) - yawOf(sample.T.linear()))));
+      max_heading_error = std::max(max_heading_error,
+                                   std::abs(wrapAngle(yawOf(b.initialGuess(sample.t_ns).linear()) -
+                                                      yawOf(sample.T.linear()))));
     }
     if (interpolate)
       EXPECT_LT(max_heading_error, 1e-3) << "ramps between the middles (in 8 constant pieces)";
     else
-      EXPECT_GT(max_heading_error, 0.01) << "steps at the window borders";  // 0.6 rad/s x 0.15 s / 4
+      EXPECT_GT(max_heading_error, 0.01)
+          << "steps at the window borders";  // 0.6 rad/s x 0.15 s / 4
     // The odometry (poseAt beyond the spline) takes each arc's rates over its own window: at
     // every window border the heading is the sum of the arcs' turns so far, so a pose published
     // before the next arc arrives stays right.
@@ -576,7 +598,8 @@ TEST(Backend, UnmeasuredArcsAreDeadReckonedAtTheLastMeasuredRates) {
   // count as yaw-rate measurements.
   const CameraModel cam(testCalibration());
   Backend b(testOptions(), cam, testExtrinsics());
-  const ArcStatus status[] = {ArcStatus::kOk, ArcStatus::kLost, ArcStatus::kLowEvents, ArcStatus::kOk};
+  const ArcStatus status[] = {ArcStatus::kOk, ArcStatus::kLost, ArcStatus::kLowEvents,
+                              ArcStatus::kOk};
   const double omega[] = {0.3, 5.0, std::nan(""), 0.1};
   for (int k = 0; k < 4; ++k) b.addArc(windowArc(k, omega[k], status[k]));
   EXPECT_EQ(b.stats().arcs_held, 2u);
@@ -770,15 +793,21 @@ TEST(Backend, TruthArcsBlendBetweenTheTruthAndTheFrontEnd) {
     }
     return std::sqrt(sum / n) * 180 / kPi;
   };
-  const Run fe = run(0.0, false), same = run(1.0, true), exact = run(0.0, true), twice = run(2.0, true);
+  const Run fe = run(0.0, false), same = run(1.0, true), exact = run(0.0, true),
+            twice = run(2.0, true);
   ASSERT_EQ(fe.backend.size(), same.backend.size());
   for (size_t i = 0; i < fe.backend.size(); ++i)
     ASSERT_TRUE(fe.backend[i].T.isApprox(same.backend[i].T, 1e-12)) << "pose " << i;
-  const double e_fe = rotationError(fe.backend, nullptr), e_exact = rotationError(exact.backend, nullptr);
+  const double e_fe = rotationError(fe.backend, nullptr),
+               e_exact = rotationError(exact.backend, nullptr);
   // The front-end's deviation from the truth, once and twice over.
-  const double d1 = rotationError(fe.backend, &exact.backend), d2 = rotationError(twice.backend, &exact.backend);
-  std::printf("[backend] initial fit vs truth: from the front-end's arcs %.3f deg, from the truth's %.3f deg; "
-              "deviation from the truth-fed fit at blend 1 / 2: %.3f / %.3f deg\n", e_fe, e_exact, d1, d2);
+  const double d1 = rotationError(fe.backend, &exact.backend),
+               d2 = rotationError(twice.backend, &exact.backend);
+  std::printf(
+      "[backend] initial fit vs truth: from the front-end's arcs %.3f deg, from the truth's %.3f "
+      "deg; "
+      "deviation from the truth-fed fit at blend 1 / 2: %.3f / %.3f deg\n",
+      e_fe, e_exact, d1, d2);
   // The truth turns 5 deg per 0.5 s; what is left is the fit of the arcs' ramps, not the rates.
   EXPECT_LT(e_exact, 0.1);
   ASSERT_GT(d1, 0.005);
@@ -804,7 +833,9 @@ TEST(Backend, YamlLoaderFillsBackendOptionsAndNamesBadKeys) {
   auto write = [&](const std::string& backend) {
     std::ofstream(path) << "camera_calibration: " << calib << "\nbackend:\n" << backend;
   };
-  write("  window_s: 3.0\n  tau1_s: 0.25\n  max_line_search_steps: 7\n  bogus_key: 1\n  volume:\n    num_planes: 17\n");
+  write(
+      "  window_s: 3.0\n  tau1_s: 0.25\n  max_line_search_steps: 7\n  bogus_key: 1\n  volume:\n    "
+      "num_planes: 17\n");
   const PipelineConfig cfg = loadPipelineConfig(path);
   EXPECT_EQ(cfg.backend.window_s, 3.0);
   EXPECT_EQ(cfg.backend.max_line_search_steps, 7);

@@ -9,8 +9,8 @@
 #include <cstdio>
 
 #include "vwe_vo/eval/evaluation.h"
-#include "vwe_vo/pipeline/offline_pipeline.h"
 #include "vwe_vo/io/options_yaml.h"
+#include "vwe_vo/pipeline/offline_pipeline.h"
 #include "vwe_vo/sim/scene.h"
 #include "vwe_vo/sim/sequences.h"
 
@@ -28,9 +28,11 @@ struct PipelineRun {
 /// vwe_vo_offline gives it from the bag's /dvs/imu), both noise-free here (the bag's carry a 1 %
 /// speed scale error, white noise and a gyro bias). Nothing before start_s is fed
 /// (a system started late: its windows fall at other times).
-PipelineRun run(const std::string& name, const std::string& config_file = "vwe_vo.yaml", double start_s = 0.0) {
+PipelineRun run(const std::string& name, const std::string& config_file = "vwe_vo.yaml",
+                double start_s = 0.0) {
   const sim::SequenceSpec spec = sim::findSequence(name);
-  PipelineConfig config = loadPipelineConfig(std::string(VWE_VO_SOURCE_DIR) + "/config/" + config_file);
+  PipelineConfig config =
+      loadPipelineConfig(std::string(VWE_VO_SOURCE_DIR) + "/config/" + config_file);
   config.T_base_cam = spec.T_base_cam;
   const CameraModel camera(config.camera);
   const auto trajectory = sim::VehicleTrajectory::fromProfile(spec.profile, spec.trajectory);
@@ -45,8 +47,9 @@ PipelineRun run(const std::string& name, const std::string& config_file = "vwe_v
     if (t1 > secToNs(start_s)) {
       pipeline.addOdometry(t1, trajectory.speed(t1), trajectory.yawRate(t1));
       pipeline.addGyro(t1, trajectory.yawRate(t1));
-      chunk.erase(chunk.begin(), std::lower_bound(chunk.begin(), chunk.end(), secToNs(start_s),
-                                                  [](const PixelEvent& e, int64_t t) { return e.t_ns < t; }));
+      chunk.erase(chunk.begin(),
+                  std::lower_bound(chunk.begin(), chunk.end(), secToNs(start_s),
+                                   [](const PixelEvent& e, int64_t t) { return e.t_ns < t; }));
       pipeline.addEvents(chunk);
     }
     t = t1;
@@ -59,14 +62,16 @@ PipelineRun run(const std::string& name, const std::string& config_file = "vwe_v
   const EvaluationOptions o;
   r.frontend = evaluate(gt, pipeline.frontendTrajectory(), o);
   r.backend = evaluate(gt, be, o);
-  std::printf("[backend accuracy] %s from %.2f s: rotation RMSE front-end %.3f, back-end %.3f deg/s (%.0f %% lower); "
-              "back-end translation direction %.3f deg/s, ATE %.2f %% of %.1f m, tracked %.2f, "
-              "scale per %.0f m %.3f-%.3f\n",
-              name.c_str(), start_s, r.frontend.rpe.rot_rmse_deg_s, r.backend.rpe.rot_rmse_deg_s,
-              100.0 * (1.0 - r.backend.rpe.rot_rmse_deg_s / r.frontend.rpe.rot_rmse_deg_s),
-              r.backend.rpe.trans_dir_rmse_deg_s, r.backend.ate_percent_of_path,
-              r.backend.path_length_m, r.backend.tracked_fraction, o.segment_m,
-              r.backend.scale_drift.min_ratio, r.backend.scale_drift.max_ratio);
+  std::printf(
+      "[backend accuracy] %s from %.2f s: rotation RMSE front-end %.3f, back-end %.3f deg/s (%.0f "
+      "%% lower); "
+      "back-end translation direction %.3f deg/s, ATE %.2f %% of %.1f m, tracked %.2f, "
+      "scale per %.0f m %.3f-%.3f\n",
+      name.c_str(), start_s, r.frontend.rpe.rot_rmse_deg_s, r.backend.rpe.rot_rmse_deg_s,
+      100.0 * (1.0 - r.backend.rpe.rot_rmse_deg_s / r.frontend.rpe.rot_rmse_deg_s),
+      r.backend.rpe.trans_dir_rmse_deg_s, r.backend.ate_percent_of_path, r.backend.path_length_m,
+      r.backend.tracked_fraction, o.segment_m, r.backend.scale_drift.min_ratio,
+      r.backend.scale_drift.max_ratio);
   return r;
 }
 
@@ -84,10 +89,14 @@ void expectIndoorTargets(const PipelineRun& r, double max_rot_rmse_deg_s) {
 }  // namespace
 
 // Measured: back-end 0.180 deg/s against the front-end's 0.273 (34 % lower).
-TEST(BackendAccuracy, IndoorCircle) { expectIndoorTargets(run("indoor_circle"), 0.3); }
+TEST(BackendAccuracy, IndoorCircle) {
+  expectIndoorTargets(run("indoor_circle"), 0.3);
+}
 
 // Measured: 0.219 against 0.361 (39 % lower).
-TEST(BackendAccuracy, IndoorLongWithStandstill) { expectIndoorTargets(run("indoor_long"), 0.4); }
+TEST(BackendAccuracy, IndoorLongWithStandstill) {
+  expectIndoorTargets(run("indoor_long"), 0.4);
+}
 
 // Measured: back-end 0.341 deg/s against the front-end's 0.481 (29 % lower), translation
 // direction 0.177 deg/s, scale per 10 m 0.993-1.008. The ratio moves with where the windows
@@ -112,7 +121,8 @@ TEST(BackendAccuracy, StreetLongStartedLate) {
   // driving.
   const PipelineRun r = run("street_long", "car.yaml", 0.25);
   EXPECT_EQ(r.nonfinite_poses, 0u);
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.9 * r.frontend.rpe.rot_rmse_deg_s);  // measured 0.361 vs 0.439
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s,
+            0.9 * r.frontend.rpe.rot_rmse_deg_s);  // measured 0.361 vs 0.439
   EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.6);
   EXPECT_LE(r.backend.ate_percent_of_path, 2.0);
 }

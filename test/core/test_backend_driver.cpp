@@ -25,7 +25,9 @@ CameraCalibration calibration() {
   return c;
 }
 
-Pose3 extrinsics() { return makePose(R_base_opticalFrame(), Vec3(0.1, 0.0, 0.3)); }
+Pose3 extrinsics() {
+  return makePose(R_base_opticalFrame(), Vec3(0.1, 0.0, 0.3));
+}
 
 ArcEstimate arcAt(int64_t t_start, double omega = 0.2, double v = 0.5,
                   ArcStatus status = ArcStatus::kOk) {
@@ -72,7 +74,8 @@ TEST(BackendDriver, RefinesOncePerUpdateIntervalAndPublishesTheOdometryFirst) {
   EXPECT_EQ(r.backend->processedUntil(), kEpoch + 60 * kArcNs);
   // Odometry every 50 ms from the first arc's start to the newest arc's end, once each.
   ASSERT_EQ(r.odometry.size(), 71u);
-  for (size_t i = 0; i < r.odometry.size(); ++i) EXPECT_EQ(r.odometry[i].t_ns, kEpoch + int64_t(i) * kArcNs);
+  for (size_t i = 0; i < r.odometry.size(); ++i)
+    EXPECT_EQ(r.odometry[i].t_ns, kEpoch + int64_t(i) * kArcNs);
   // Each odometry pose follows the arcs' turn: 0.2 rad/s.
   EXPECT_NEAR(yawOf(r.odometry[20].T.linear()), 0.2 * 1.0, 1e-6);
 }
@@ -103,7 +106,7 @@ TEST(BackendDriver, StaleArcsAreIgnoredAndLostArcsCounted) {
   Rig r;
   r.driver->addArc(arcAt(kEpoch));
   r.driver->addArc(arcAt(kEpoch + kArcNs));
-  r.driver->addArc(arcAt(kEpoch + kArcNs));           // again: stale
+  r.driver->addArc(arcAt(kEpoch + kArcNs));            // again: stale
   r.driver->addArc(arcAt(kEpoch + kArcNs - 1000000));  // 1 ms older: stale, no jump back
   r.driver->addArc(arcAt(kEpoch + 2 * kArcNs, 5.0, 0.5, ArcStatus::kLost));
   EXPECT_EQ(r.driver->stats().arcs_in, 5u);

@@ -90,7 +90,8 @@ TEST(Camera, InvalidCalibrationsAreRefusedNamingTheField) {
 }
 
 TEST(Camera, MalformedYamlNamesFileAndField) {
-  const std::string p1 = writeTemp("cam_missing.yaml", "image_width: 346\ncamera_matrix: {data: [1,0,0,0,1,0,0,0,1]}\n");
+  const std::string p1 = writeTemp(
+      "cam_missing.yaml", "image_width: 346\ncamera_matrix: {data: [1,0,0,0,1,0,0,0,1]}\n");
   try {
     loadCameraCalibrationYaml(p1);
     FAIL();
@@ -98,8 +99,9 @@ TEST(Camera, MalformedYamlNamesFileAndField) {
     EXPECT_NE(std::string(e.what()).find("cam_missing.yaml"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("image_height"), std::string::npos);
   }
-  const std::string p2 = writeTemp("cam_zero.yaml",
-                                   "image_width: 346\nimage_height: 260\ncamera_matrix: {data: [0,0,170,0,250,130,0,0,1]}\n");
+  const std::string p2 = writeTemp(
+      "cam_zero.yaml",
+      "image_width: 346\nimage_height: 260\ncamera_matrix: {data: [0,0,170,0,250,130,0,0,1]}\n");
   try {
     loadCameraCalibrationYaml(p2);
     FAIL();

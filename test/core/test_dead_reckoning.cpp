@@ -20,7 +20,9 @@ Pose3 circle(double w, double v, double t) {
   return planarPose(R * std::sin(w * t), R * (1 - std::cos(w * t)), w * t);
 }
 
-double yaw(const Pose3& T) { return yawOf(T.linear()); }
+double yaw(const Pose3& T) {
+  return yawOf(T.linear());
+}
 
 }  // namespace
 
@@ -45,8 +47,10 @@ TEST(DeadReckoning, IntegrateRampsAtConstantRatesIsACircleAndRampsGiveTheTrapezo
   const double w = -0.4, v = 2.0;
   std::vector<TimedRates> arcs;
   for (int k = 0; k < 5; ++k)
-    arcs.push_back({kT0 + k * 100000000LL, kT0 + k * 100000000LL + 50000000LL,
-                    kT0 + (k + 1) * 100000000LL, {w, v}});
+    arcs.push_back({kT0 + k * 100000000LL,
+                    kT0 + k * 100000000LL + 50000000LL,
+                    kT0 + (k + 1) * 100000000LL,
+                    {w, v}});
   const Trajectory3 traj = integrateRamps(arcs, 10000000LL);
   ASSERT_EQ(traj.size(), 51u);
   EXPECT_EQ(traj.front().t_ns, kT0);
@@ -57,8 +61,9 @@ TEST(DeadReckoning, IntegrateRampsAtConstantRatesIsACircleAndRampsGiveTheTrapezo
   }
   // Two arcs of 0.2 s, 0.2 and 1.0 rad/s: the yaw rate is 0.2 up to the first middle, ramps to
   // 1.0 at the second middle and stays there. The midpoint rule is exact on each linear piece.
-  std::vector<TimedRates> two = {{kT0, kT0 + 100000000LL, kT0 + 200000000LL, {0.2, 1.0}},
-                                 {kT0 + 200000000LL, kT0 + 300000000LL, kT0 + 400000000LL, {1.0, 1.0}}};
+  std::vector<TimedRates> two = {
+      {kT0, kT0 + 100000000LL, kT0 + 200000000LL, {0.2, 1.0}},
+      {kT0 + 200000000LL, kT0 + 300000000LL, kT0 + 400000000LL, {1.0, 1.0}}};
   const Trajectory3 ramp = integrateRamps(two, 5000000LL);
   const double expected_yaw = 0.2 * 0.1 + 0.5 * (0.2 + 1.0) * 0.2 + 1.0 * 0.1;
   EXPECT_NEAR(yaw(ramp.back().T), expected_yaw, 1e-12);
@@ -82,8 +87,9 @@ TEST(DeadReckoning, RampedChainReachesEachMiddleWithTheTrapezoidStepsKeepEachArc
     const Pose3 held = dr.steps().T_odom_base(kT0 + 900000000LL);
     EXPECT_TRUE(dr.steps().T_odom_base(kT0 + 1200000000LL).isApprox(held, 1e-14));
     if (!interpolate) {
-      EXPECT_TRUE(dr.ramped().T_odom_base(kT0 + 450000000LL).isApprox(
-          dr.steps().T_odom_base(kT0 + 450000000LL), 1e-15));
+      EXPECT_TRUE(dr.ramped()
+                      .T_odom_base(kT0 + 450000000LL)
+                      .isApprox(dr.steps().T_odom_base(kT0 + 450000000LL), 1e-15));
       continue;
     }
     // Ramped: 0 up to 0.15 s, linear to 0.6 at 0.45 s, linear to -0.3 at 0.75 s; the moving
@@ -96,7 +102,9 @@ TEST(DeadReckoning, RampedChainReachesEachMiddleWithTheTrapezoidStepsKeepEachArc
     EXPECT_NEAR(yaw(dr.ramped().T_odom_base(kT0 + 900000000LL)), at090, 1e-12);
     EXPECT_NEAR(yaw(dr.ramped().T_odom_base(kT0 + 1200000000LL)), at090, 1e-12);
     EXPECT_LT((dr.ramped().T_odom_base(kT0 + 1200000000LL).translation() -
-               dr.ramped().T_odom_base(kT0 + 900000000LL).translation()).norm(), 1e-15);
+               dr.ramped().T_odom_base(kT0 + 900000000LL).translation())
+                  .norm(),
+              1e-15);
   }
 }
 
@@ -112,7 +120,8 @@ TEST(DeadReckoning, ReanchoringPutsThePoseOnTheSplineAndKeepsTheRelativeMotion) 
   const Pose3 A = anchorOnSplinePose(spline, u, chain.T_odom_base(kT0 + secToNs(u)));
   EXPECT_TRUE((A * chain.T_odom_base(kT0 + secToNs(u))).isApprox(spline.T_odom_base(u), 1e-12));
   for (double a : {0.2, 1.0, 1.9}) {
-    const Pose3 Ta = chain.T_odom_base(kT0 + secToNs(a)), Tb = chain.T_odom_base(kT0 + secToNs(a + 0.3));
+    const Pose3 Ta = chain.T_odom_base(kT0 + secToNs(a)),
+                Tb = chain.T_odom_base(kT0 + secToNs(a + 0.3));
     const Pose3 rel = Ta.inverse() * Tb, rel_anchored = (A * Ta).inverse() * (A * Tb);
     EXPECT_TRUE(rel_anchored.isApprox(rel, 1e-12)) << a;
   }

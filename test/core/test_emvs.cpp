@@ -11,9 +11,9 @@
 #include <sstream>
 
 #include "../common/synthetic_events.h"
-#include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/io/config.h"
 #include "vwe_vo/mapping/emvs.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
 
 using namespace vwe_vo;
 

@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "vwe_vo/mapping/emvs.h"
 #include "vwe_vo/eval/evaluation.h"
-#include "vwe_vo/pipeline/offline_pipeline.h"
 #include "vwe_vo/io/options_yaml.h"
+#include "vwe_vo/mapping/emvs.h"
+#include "vwe_vo/pipeline/offline_pipeline.h"
 #include "vwe_vo/sim/event_simulator.h"
 #include "vwe_vo/sim/scene.h"
 #include "vwe_vo/sim/sequences.h"
@@ -25,10 +25,10 @@ namespace {
 
 struct DepthScore {
   size_t keyframes = 0;
-  size_t points = 0;    // points of all keyframes
-  size_t compared = 0;  // points that project onto a pixel with a rendered surface
-  double median = 0.0;  // median |z - z_true| / z_true of the compared points
-  double within5 = 0.0; // fraction of all points within 5 % of the true depth
+  size_t points = 0;     // points of all keyframes
+  size_t compared = 0;   // points that project onto a pixel with a rendered surface
+  double median = 0.0;   // median |z - z_true| / z_true of the compared points
+  double within5 = 0.0;  // fraction of all points within 5 % of the true depth
 };
 
 enum class Poses { kTrue, kEstimated };
@@ -38,8 +38,8 @@ enum class Poses { kTrue, kEstimated };
 /// (run on the same events with the true speed as wheel odometry, aligned to the truth by
 /// Sim(3)). Every keyframe's points are scored against the depth rendered from the keyframe's
 /// true camera (nearest pixel of the point's projection).
-DepthScore mapEvents(const std::string& name, const std::string& config, double t_from_s, double t_to_s,
-                     Poses poses) {
+DepthScore mapEvents(const std::string& name, const std::string& config, double t_from_s,
+                     double t_to_s, Poses poses) {
   const sim::SequenceSpec spec = sim::findSequence(name);
   PipelineConfig cfg = loadPipelineConfig(std::string(VWE_VO_SOURCE_DIR) + "/config/" + config);
   const CameraModel camera(cfg.camera);
@@ -51,7 +51,9 @@ DepthScore mapEvents(const std::string& name, const std::string& config, double 
   const auto from = std::lower_bound(all.begin(), all.end(), secToNs(t_from_s),
                                      [](const PixelEvent& e, int64_t t) { return e.t_ns < t; });
   const EventVector events(from, all.end());
-  const auto T_odom_cam_true = [&](int64_t t_ns) { return Pose3(trajectory.T_odom_base(t_ns) * spec.T_base_cam); };
+  const auto T_odom_cam_true = [&](int64_t t_ns) {
+    return Pose3(trajectory.T_odom_base(t_ns) * spec.T_base_cam);
+  };
 
   Trajectory3 estimate;  // base_link in the truth's odom (Sim(3)-aligned), kEstimated only
   if (poses == Poses::kEstimated) {
@@ -120,9 +122,12 @@ DepthScore mapEvents(const std::string& name, const std::string& config, double 
     s.median = errors[errors.size() / 2];
   }
   s.within5 = s.points ? double(within5) / s.points : 0.0;
-  std::printf("[emvs %s, %s poses] %zu keyframes, %zu points (%zu on a rendered surface): median rel. depth error "
-              "%.2f %%, %.1f %% of the points within 5 %%\n",
-              name.c_str(), poses == Poses::kTrue ? "true" : "estimated", s.keyframes, s.points, s.compared, 100 * s.median, 100 * s.within5);
+  std::printf(
+      "[emvs %s, %s poses] %zu keyframes, %zu points (%zu on a rendered surface): median rel. "
+      "depth error "
+      "%.2f %%, %.1f %% of the points within 5 %%\n",
+      name.c_str(), poses == Poses::kTrue ? "true" : "estimated", s.keyframes, s.points, s.compared,
+      100 * s.median, 100 * s.within5);
   return s;
 }
 

@@ -5,31 +5,33 @@
 
 #include <array>
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 #include <random>
 
-#include <opencv2/imgproc.hpp>
-
-#include "vwe_vo/trajectory/ackermann_arc.h"
-#include "vwe_vo/sensor/camera.h"
-#include "vwe_vo/io/config.h"
-#include "vwe_vo/eval/evaluation.h"
 #include "vwe_vo/baseline/frame_baseline.h"
+#include "vwe_vo/eval/evaluation.h"
+#include "vwe_vo/io/config.h"
+#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sim/frame_simulator.h"
 #include "vwe_vo/sim/sequences.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
 
 namespace vwe_vo {
 namespace {
 
 const std::string kCalib = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
 
-CameraModel camera() { return CameraModel(loadCameraCalibrationYaml(kCalib)); }
+CameraModel camera() {
+  return CameraModel(loadCameraCalibrationYaml(kCalib));
+}
 
 struct Synthetic {
   std::vector<Vec3> f_r, f_t;
 };
 
 // Random points 1-8 m in front of camera r, seen from camera t after the arc (theta, s).
-Synthetic makeCorrespondences(double theta, double s_m, const Pose3& T_base_cam, int n, uint64_t seed) {
+Synthetic makeCorrespondences(double theta, double s_m, const Pose3& T_base_cam, int n,
+                              uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> ux(-0.6, 0.6), uy(-0.4, 0.4), uz(1.0, 8.0);
   const Pose3 T_Cr_Ct = arcT_Cr_Ct(theta, s_m, 1.0, T_base_cam);
@@ -47,8 +49,10 @@ Synthetic makeCorrespondences(double theta, double s_m, const Pose3& T_base_cam,
 }
 
 TEST(FrameBaseline, OnePointSolverIsExactWithOurExtrinsics) {
-  const Pose3 mounts[] = {defaultTBaseCam(), mountToTBaseCam(Vec3(1.5, 0.0, 1.4), 0.0, 5.0 * kPi / 180, 0.0)};
-  const double cases[][2] = {{0.0174, 0.016}, {-0.05, 0.02}, {0.3, 0.5}, {-0.25, 1.2}, {0.0, 0.3}, {1e-4, 0.016}};
+  const Pose3 mounts[] = {defaultTBaseCam(),
+                          mountToTBaseCam(Vec3(1.5, 0.0, 1.4), 0.0, 5.0 * kPi / 180, 0.0)};
+  const double cases[][2] = {{0.0174, 0.016}, {-0.05, 0.02}, {0.3, 0.5},
+                             {-0.25, 1.2},    {0.0, 0.3},    {1e-4, 0.016}};
   int total = 0, unique = 0, none = 0;
   std::vector<double> roots;
   for (const Pose3& T_bc : mounts)
@@ -57,14 +61,15 @@ TEST(FrameBaseline, OnePointSolverIsExactWithOurExtrinsics) {
       for (size_t i = 0; i < s.f_r.size(); ++i) {
         ++total;
         solveTheta1Point(s.f_r[i], s.f_t[i], c[1], T_bc, 0.5, &roots);
-        if (roots.empty()) {  // a double root (e touches zero without a sign change): degenerate track
+        if (roots.empty()) {  // a double root (e touches zero without a sign change): degenerate
+                              // track
           ++none;
           continue;
         }
         double best = 1e9;
         for (double r : roots) best = std::min(best, std::abs(r - c[0]));
-        EXPECT_LT(best, 1e-6) << "theta " << c[0] << " s " << c[1] << " track " << i << ": " << roots.size()
-                              << " roots";
+        EXPECT_LT(best, 1e-6) << "theta " << c[0] << " s " << c[1] << " track " << i << ": "
+                              << roots.size() << " roots";
         unique += roots.size() == 1;
       }
     }
@@ -80,11 +85,13 @@ TEST(FrameBaseline, OffsetMattersClosedFormIsOnlyApproximate) {
   Pose3 on_axle = defaultTBaseCam();
   on_axle.translation().setZero();
   const Synthetic a = makeCorrespondences(0.2, 0.3, on_axle, 20, 3);
-  for (size_t i = 0; i < a.f_r.size(); ++i) EXPECT_NEAR(theta1PointOnAxle(a.f_r[i], a.f_t[i], on_axle), 0.2, 1e-9);
+  for (size_t i = 0; i < a.f_r.size(); ++i)
+    EXPECT_NEAR(theta1PointOnAxle(a.f_r[i], a.f_t[i], on_axle), 0.2, 1e-9);
   const Synthetic b = makeCorrespondences(0.2, 0.3, defaultTBaseCam(), 20, 3);
   double max_err = 0;
   for (size_t i = 0; i < b.f_r.size(); ++i)
-    max_err = std::max(max_err, std::abs(theta1PointOnAxle(b.f_r[i], b.f_t[i], defaultTBaseCam()) - 0.2));
+    max_err =
+        std::max(max_err, std::abs(theta1PointOnAxle(b.f_r[i], b.f_t[i], defaultTBaseCam()) - 0.2));
   EXPECT_GT(max_err, 1e-4);
 }
 
@@ -103,7 +110,8 @@ TEST(FrameBaseline, RansacWithThirtyPercentOutliers) {
       s.f_t[k] = x.normalized();
       is_outlier[k] = true;
     }
-  const ThetaRansacResult r = estimateThetaRansac(s.f_r, s.f_t, s_m, T_bc, 0.5, 1.0 / 255.0, 200, 12, 1);
+  const ThetaRansacResult r =
+      estimateThetaRansac(s.f_r, s.f_t, s_m, T_bc, 0.5, 1.0 / 255.0, 200, 12, 1);
   ASSERT_TRUE(r.ok);
   EXPECT_NEAR(r.theta, theta, 1e-6);
   int inlier_outliers = 0;
@@ -120,7 +128,8 @@ TEST(FrameBaseline, RansacWithThirtyPercentOutliers) {
     x.y() += k % 10 < 3 ? off(rng) : px(rng);
     n.f_t[k] = x.normalized();
   }
-  const ThetaRansacResult rn = estimateThetaRansac(n.f_r, n.f_t, s_m, T_bc, 0.5, 1.0 / 255.0, 200, 12, 1);
+  const ThetaRansacResult rn =
+      estimateThetaRansac(n.f_r, n.f_t, s_m, T_bc, 0.5, 1.0 / 255.0, 200, 12, 1);
   ASSERT_TRUE(rn.ok);
   EXPECT_NEAR(rn.theta, theta, 0.05 * kPi / 180);
 }
@@ -144,12 +153,14 @@ struct SimRun {
   size_t frames = 0;
 };
 
-SimRun runOnSequence(const std::string& name, double duration_s, std::vector<FrameEstimate>* estimates = nullptr,
+SimRun runOnSequence(const std::string& name, double duration_s,
+                     std::vector<FrameEstimate>* estimates = nullptr,
                      std::vector<sim::SimulatedFrame>* frames = nullptr) {
   const sim::SequenceSpec spec = sim::findSequence(name);
   const auto tr = sim::VehicleTrajectory::fromProfile(spec.profile, spec.trajectory);
   const CameraModel cam = camera();
-  sim::EventSimulator esim(sim::buildScene(spec.scene, spec.seed, tr), cam, spec.T_base_cam, tr, spec.simulator);
+  sim::EventSimulator esim(sim::buildScene(spec.scene, spec.seed, tr), cam, spec.T_base_cam, tr,
+                           spec.simulator);
   sim::FrameSimulatorOptions fo;
   fo.seed = spec.seed;
   sim::FrameSimulator fsim(&esim, fo);
@@ -158,8 +169,10 @@ SimRun runOnSequence(const std::string& name, double duration_s, std::vector<Fra
   FrameBaseline baseline(bo, cam, spec.T_base_cam);
   SimRun run;
   for (int64_t t = 0; t <= secToNs(duration_s); t += secToNs(1.0)) {
-    for (sim::SimulatedFrame& f : fsim.simulateUntil(std::min(t + secToNs(1.0), secToNs(duration_s)))) {
-      baseline.addOdometry(f.t_ns, tr.speed(f.t_ns), tr.yawRate(f.t_ns));  // speed (and standstill) as from /odom
+    for (sim::SimulatedFrame& f :
+         fsim.simulateUntil(std::min(t + secToNs(1.0), secToNs(duration_s)))) {
+      baseline.addOdometry(f.t_ns, tr.speed(f.t_ns),
+                           tr.yawRate(f.t_ns));  // speed (and standstill) as from /odom
       const FrameEstimate e = baseline.addFrame(f.t_ns, f.image);
       EXPECT_TRUE(std::isfinite(e.omega) && std::isfinite(e.theta));
       ++run.frames;
@@ -170,7 +183,8 @@ SimRun runOnSequence(const std::string& name, double duration_s, std::vector<Fra
     }
   }
   Trajectory3 gt;
-  for (int64_t t = 0; t <= secToNs(duration_s); t += secToNs(0.01)) gt.push_back({t, tr.T_odom_base(t)});
+  for (int64_t t = 0; t <= secToNs(duration_s); t += secToNs(0.01))
+    gt.push_back({t, tr.T_odom_base(t)});
   EvaluationOptions eo;
   eo.extra_deltas_s.clear();
   run.eval = evaluate(gt, baseline.trajectory(), eo);
@@ -181,8 +195,9 @@ SimRun runOnSequence(const std::string& name, double duration_s, std::vector<Fra
 
 TEST(FrameBaseline, TracksSimulatedIndoorCircle) {
   const SimRun r = runOnSequence("indoor_circle", 3.0);
-  std::printf("indoor_circle 3 s: %zu frames, %zu ok, %zu lost, rot RPE RMSE %.3f deg/s, tracked %.2f\n", r.frames,
-              r.stats.ok, r.stats.lost, r.eval.rpe.rot_rmse_deg_s, r.eval.tracked_fraction);
+  std::printf(
+      "indoor_circle 3 s: %zu frames, %zu ok, %zu lost, rot RPE RMSE %.3f deg/s, tracked %.2f\n",
+      r.frames, r.stats.ok, r.stats.lost, r.eval.rpe.rot_rmse_deg_s, r.eval.tracked_fraction);
   EXPECT_GT(r.stats.ok, 0.9 * r.frames);
   EXPECT_GT(r.eval.tracked_fraction, 0.9);
   EXPECT_LE(r.eval.rpe.rot_rmse_deg_s, 2.0);
@@ -190,8 +205,9 @@ TEST(FrameBaseline, TracksSimulatedIndoorCircle) {
 
 TEST(FrameBaseline, TracksSimulatedIndoorStraight) {
   const SimRun r = runOnSequence("indoor_straight", 3.0);
-  std::printf("indoor_straight 3 s: %zu frames, %zu ok, %zu lost, rot RPE RMSE %.3f deg/s, tracked %.2f\n",
-              r.frames, r.stats.ok, r.stats.lost, r.eval.rpe.rot_rmse_deg_s, r.eval.tracked_fraction);
+  std::printf(
+      "indoor_straight 3 s: %zu frames, %zu ok, %zu lost, rot RPE RMSE %.3f deg/s, tracked %.2f\n",
+      r.frames, r.stats.ok, r.stats.lost, r.eval.rpe.rot_rmse_deg_s, r.eval.tracked_fraction);
   EXPECT_GT(r.stats.ok, 0.9 * r.frames);
   EXPECT_GT(r.eval.tracked_fraction, 0.9);
   EXPECT_LE(r.eval.rpe.rot_rmse_deg_s, 2.0);
@@ -200,8 +216,9 @@ TEST(FrameBaseline, TracksSimulatedIndoorStraight) {
 TEST(FrameBaseline, TracksSimulatedIndoorLongThroughTwoTurns) {
   // indoor_long: straight, a 90-degree left turn at 30 deg/s, straight, a tighter one at 45 deg/s.
   const SimRun r = runOnSequence("indoor_long", 11.0);
-  std::printf("indoor_long 11 s: %zu frames, %zu ok, %zu lost, rot RPE RMSE %.3f deg/s, tracked %.2f\n", r.frames,
-              r.stats.ok, r.stats.lost, r.eval.rpe.rot_rmse_deg_s, r.eval.tracked_fraction);
+  std::printf(
+      "indoor_long 11 s: %zu frames, %zu ok, %zu lost, rot RPE RMSE %.3f deg/s, tracked %.2f\n",
+      r.frames, r.stats.ok, r.stats.lost, r.eval.rpe.rot_rmse_deg_s, r.eval.tracked_fraction);
   EXPECT_GT(r.stats.ok + r.stats.standstill, 0.9 * r.frames);
   EXPECT_GT(r.eval.tracked_fraction, 0.9);
   EXPECT_LE(r.eval.rpe.rot_rmse_deg_s, 2.0);
@@ -221,19 +238,23 @@ TEST(FrameBaseline, LosesTrackWhereTheHdrFramesFailNeverNaN) {
   for (size_t i = 0; i < est.size(); ++i) {
     const double t = nsToSec(est[i].t_ns);
     const bool ok = est[i].status == FrameStatus::kOk;
-    EXPECT_TRUE(std::isfinite(est[i].omega) && std::isfinite(est[i].theta) && std::isfinite(est[i].v));
+    EXPECT_TRUE(std::isfinite(est[i].omega) && std::isfinite(est[i].theta) &&
+                std::isfinite(est[i].v));
     if (t > 1.0 && t < 3.7) ++bright, bright_ok += ok, bright_exposure = frames[i].exposure_s;
-    if ((t > 3.85 && t < 3.97) || (t > 7.85 && t < 7.97)) ++ramps, ramps_lost += est[i].status == FrameStatus::kLost;
+    if ((t > 3.85 && t < 3.97) || (t > 7.85 && t < 7.97))
+      ++ramps, ramps_lost += est[i].status == FrameStatus::kLost;
     if (t > 4.5 && t < 7.7) ++dark, dark_ok += ok, dark_exposure = frames[i].exposure_s;
     if (t > 7.97 && t < 8.1) sat_return = std::max(sat_return, frames[i].saturated_fraction);
     if (ok && t > 4.5 && t < 7.7) {  // when it does track in the dark, it is right
       EXPECT_NEAR(est[i].omega * kDegPerRad, 20.0, 3.0) << "at " << t << " s";
     }
   }
-  std::printf("indoor_hdr 9 s: bright %d/%d ok (exposure %.1f ms), light ramps %d/%d lost, dark %d/%d ok (exposure "
-              "%.1f ms), %.0f %% saturated after the return, rot RPE RMSE %.3f deg/s, tracked %.2f\n",
-              bright_ok, bright, bright_exposure * 1e3, ramps_lost, ramps, dark_ok, dark, dark_exposure * 1e3,
-              100 * sat_return, r.eval.rpe.rot_rmse_deg_s, r.eval.tracked_fraction);
+  std::printf(
+      "indoor_hdr 9 s: bright %d/%d ok (exposure %.1f ms), light ramps %d/%d lost, dark %d/%d ok "
+      "(exposure "
+      "%.1f ms), %.0f %% saturated after the return, rot RPE RMSE %.3f deg/s, tracked %.2f\n",
+      bright_ok, bright, bright_exposure * 1e3, ramps_lost, ramps, dark_ok, dark,
+      dark_exposure * 1e3, 100 * sat_return, r.eval.rpe.rot_rmse_deg_s, r.eval.tracked_fraction);
   EXPECT_GT(bright_ok, 0.9 * bright);
   EXPECT_EQ(ramps_lost, ramps);            // every frame of the light ramps is LOST
   EXPECT_DOUBLE_EQ(dark_exposure, 25e-3);  // the auto-exposure is at its cap in the dark
@@ -269,10 +290,12 @@ TEST(FrameBaseline, BadFramesAreLostOrRefused) {
   EXPECT_EQ(same.status, FrameStatus::kLost);
   EXPECT_NE(same.reason.find("identical"), std::string::npos) << same.reason;
   // Black and saturated frames.
-  const FrameEstimate black = b.addFrame(secToNs(0.08), cv::Mat1b::zeros(cam.height(), cam.width()));
+  const FrameEstimate black =
+      b.addFrame(secToNs(0.08), cv::Mat1b::zeros(cam.height(), cam.width()));
   EXPECT_EQ(black.status, FrameStatus::kLost);
   EXPECT_FALSE(black.reason.empty());
-  const FrameEstimate white = b.addFrame(secToNs(0.12), cv::Mat1b(cam.height(), cam.width(), uint8_t(255)));
+  const FrameEstimate white =
+      b.addFrame(secToNs(0.12), cv::Mat1b(cam.height(), cam.width(), uint8_t(255)));
   EXPECT_EQ(white.status, FrameStatus::kLost);
   EXPECT_NE(white.reason.find("over-exposed"), std::string::npos) << white.reason;
   // Back to a textured frame: tracks restart, still not a made-up estimate.
@@ -284,7 +307,8 @@ TEST(FrameBaseline, BadFramesAreLostOrRefused) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("346x260"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(b.addFrame(secToNs(0.24), cv::Mat3b::zeros(cam.height(), cam.width())), std::invalid_argument);
+  EXPECT_THROW(b.addFrame(secToNs(0.24), cv::Mat3b::zeros(cam.height(), cam.width())),
+               std::invalid_argument);
   EXPECT_THROW(b.addFrame(secToNs(0.10), tex), std::invalid_argument);  // stamp going backwards
   expectFinite(b);
   EXPECT_EQ(b.trajectory().size(), 1u);  // only the first frame: nothing was estimated
@@ -305,11 +329,13 @@ TEST(FrameSimulator, ExposureFollowsTheIlluminationToggleLateAndCapped) {
   const sim::SequenceSpec spec = sim::findSequence("indoor_hdr");
   const auto tr = sim::VehicleTrajectory::fromProfile(spec.profile, spec.trajectory);
   const CameraModel cam = camera();
-  sim::EventSimulator esim(sim::buildScene(spec.scene, spec.seed, tr), cam, spec.T_base_cam, tr, spec.simulator);
+  sim::EventSimulator esim(sim::buildScene(spec.scene, spec.seed, tr), cam, spec.T_base_cam, tr,
+                           spec.simulator);
   sim::FrameSimulatorOptions fo;
   fo.rate_hz = 5.0;  // fewer renders; the same physics (the lag is in seconds, the delay one frame)
   sim::FrameSimulator fsim(&esim, fo);
-  double level_bright = 0, mean_bright = 0, mean_dark_first = -1, mean_dark = 0, sat_after = 0, exposure_dark = 0;
+  double level_bright = 0, mean_bright = 0, mean_dark_first = -1, mean_dark = 0, sat_after = 0,
+         exposure_dark = 0;
   double exposure_at_drop = 0;
   for (const auto& f : fsim.simulateUntil(secToNs(8.6))) {
     const double m = cv::mean(f.image)[0];
@@ -320,12 +346,16 @@ TEST(FrameSimulator, ExposureFollowsTheIlluminationToggleLateAndCapped) {
     if (t > 8.05 && t < 8.3) sat_after = std::max(sat_after, f.saturated_fraction);
     EXPECT_EQ(f.image.rows, cam.height());
   }
-  std::printf("hdr frames: bright mean %.1f DN (metered %.2f), first dark mean %.1f DN at %.1f ms, dark mean %.1f DN "
-              "at %.1f ms, saturated after %.2f\n",
-              mean_bright, level_bright, mean_dark_first, exposure_at_drop * 1e3, mean_dark, exposure_dark * 1e3,
-              sat_after);
-  EXPECT_NEAR(level_bright, fo.ae_target, 0.1);       // the auto-exposure settles on its target in full light
-  EXPECT_LT(mean_dark_first, 0.3 * mean_bright);       // late: the first dark frame keeps the bright exposure
+  std::printf(
+      "hdr frames: bright mean %.1f DN (metered %.2f), first dark mean %.1f DN at %.1f ms, dark "
+      "mean %.1f DN "
+      "at %.1f ms, saturated after %.2f\n",
+      mean_bright, level_bright, mean_dark_first, exposure_at_drop * 1e3, mean_dark,
+      exposure_dark * 1e3, sat_after);
+  EXPECT_NEAR(level_bright, fo.ae_target,
+              0.1);  // the auto-exposure settles on its target in full light
+  EXPECT_LT(mean_dark_first,
+            0.3 * mean_bright);  // late: the first dark frame keeps the bright exposure
   EXPECT_LT(exposure_at_drop, 2 * fo.exposure_s * 4);  // (it is still near the full-light exposure)
   EXPECT_DOUBLE_EQ(exposure_dark, fo.exposure_max_s);  // capped: the dark frames stay under-exposed
   EXPECT_LT(mean_dark, 0.25 * mean_bright);
@@ -338,7 +368,8 @@ TEST(FrameSimulator, DynamicRangeIsAbout55DbIn8Bits) {
   const sim::SequenceSpec spec = sim::findSequence("indoor_circle");
   const auto tr = sim::VehicleTrajectory::fromProfile(spec.profile, spec.trajectory);
   const CameraModel cam = camera();
-  sim::EventSimulator esim(sim::buildScene(spec.scene, spec.seed, tr), cam, spec.T_base_cam, tr, spec.simulator);
+  sim::EventSimulator esim(sim::buildScene(spec.scene, spec.seed, tr), cam, spec.T_base_cam, tr,
+                           spec.simulator);
   sim::FrameSimulatorOptions fo;
   fo.auto_exposure = false;
   fo.exposure_s = fo.exposure_min_s;  // 10 us: a few electrons of signal
@@ -350,8 +381,8 @@ TEST(FrameSimulator, DynamicRangeIsAbout55DbIn8Bits) {
   cv::meanStdDev(diff, m, s);
   const double noise_dn = s[0] / std::sqrt(2.0);
   const double dr_db = 20 * std::log10((255.0 - fo.black_level_dn) / noise_dn);
-  std::printf("APS noise floor %.2f DN, dynamic range %.1f dB (full well / read noise %.1f dB)\n", noise_dn, dr_db,
-              fo.dynamicRangeDb());
+  std::printf("APS noise floor %.2f DN, dynamic range %.1f dB (full well / read noise %.1f dB)\n",
+              noise_dn, dr_db, fo.dynamicRangeDb());
   EXPECT_NEAR(fo.dynamicRangeDb(), 55.0, 1.0);
   EXPECT_GT(dr_db, 50.0);
   EXPECT_LT(dr_db, 56.0);
@@ -369,7 +400,8 @@ TEST(FrameSimulator, MotionBlurGrowsWithExposure) {
   const sim::SequenceSpec spec = sim::findSequence("indoor_circle");
   const auto tr = sim::VehicleTrajectory::fromProfile(spec.profile, spec.trajectory);
   const CameraModel cam = camera();
-  sim::EventSimulator esim(sim::buildScene(spec.scene, spec.seed, tr), cam, spec.T_base_cam, tr, spec.simulator);
+  sim::EventSimulator esim(sim::buildScene(spec.scene, spec.seed, tr), cam, spec.T_base_cam, tr,
+                           spec.simulator);
   auto sharpness = [&](double exposure_s) {
     sim::FrameSimulatorOptions fo;
     fo.auto_exposure = false;

@@ -5,14 +5,15 @@
 #include <random>
 
 #include "../common/synthetic_events.h"
-#include "vwe_vo/io/config.h"
 #include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/io/config.h"
 
 using namespace vwe_vo;
 
 namespace {
 const CameraModel& camera() {
-  static const CameraModel cam(loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+  static const CameraModel cam(
+      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
   return cam;
 }
 FrontendOptions options() {
@@ -41,7 +42,8 @@ TEST(Frontend, RecoversTheYawRateOfAConstantArc) {
       EXPECT_GT(a.confidence, 0.05);
     }
     // Dead reckoning along the arcs reproduces the true arc's relative motion.
-    const Pose3 T_a = fe.T_odom_base(arcs.front().t_start_ns), T_b = fe.T_odom_base(arcs.back().t_end_ns);
+    const Pose3 T_a = fe.T_odom_base(arcs.front().t_start_ns),
+                T_b = fe.T_odom_base(arcs.back().t_end_ns);
     const double dyaw = wrapAngle(yawOf((T_a.inverse() * T_b).linear()));
     EXPECT_NEAR(dyaw, w * nsToSec(arcs.back().t_end_ns - arcs.front().t_start_ns), 0.01);
   }
@@ -57,8 +59,10 @@ TEST(Frontend, CoarseToFineFullScanFindsATurnWithFewerEvaluations) {
   FrontendOptions fine = options(), coarse = options();
   fine.full_scan_step_rad_s = fine.scan_step_rad_s;
   coarse.full_scan_step_rad_s = 0.09;
-  Frontend fe_fine(fine, camera(), defaultTBaseCam()), fe_coarse(coarse, camera(), defaultTBaseCam());
-  const ArcEstimate a_fine = fe_fine.estimateWindow(events, secToNs(5.0), 0.4, 0.0, fine.scan_half_range_rad_s);
+  Frontend fe_fine(fine, camera(), defaultTBaseCam()),
+      fe_coarse(coarse, camera(), defaultTBaseCam());
+  const ArcEstimate a_fine =
+      fe_fine.estimateWindow(events, secToNs(5.0), 0.4, 0.0, fine.scan_half_range_rad_s);
   const ArcEstimate a_coarse =
       fe_coarse.estimateWindow(events, secToNs(5.0), 0.4, 0.0, coarse.scan_half_range_rad_s);
   EXPECT_NEAR(a_fine.omega * kDegPerRad, 35.0, 0.5);
@@ -75,11 +79,13 @@ TEST(Frontend, CoarseToFineFullScanFindsATurnWithFewerEvaluations) {
   all.full_scan_max_events = 0;
   ASSERT_EQ(coarse.full_scan_max_events, 2000u);
   Frontend fe_all(all, camera(), defaultTBaseCam());
-  const ArcEstimate a_all = fe_all.estimateWindow(events, secToNs(5.0), 0.4, 0.0, all.scan_half_range_rad_s);
+  const ArcEstimate a_all =
+      fe_all.estimateWindow(events, secToNs(5.0), 0.4, 0.0, all.scan_half_range_rad_s);
   EXPECT_NEAR(a_coarse.omega, a_all.omega, 1e-3);
   EXPECT_NEAR(a_coarse.confidence, a_all.confidence, 0.1 * a_all.confidence);
-  std::printf("[frontend] full scan: confidence %.4f thinned, %.4f all events; %d / %d evaluations\n",
-              a_coarse.confidence, a_all.confidence, a_coarse.evaluations, a_all.evaluations);
+  std::printf(
+      "[frontend] full scan: confidence %.4f thinned, %.4f all events; %d / %d evaluations\n",
+      a_coarse.confidence, a_all.confidence, a_coarse.evaluations, a_all.evaluations);
 
   // A rescan bounded as for the halves of a split window (+-10 deg/s here) does not reach the turn:
   // its coarse grid stays in the range, and only the refinement around its best point (by up to
@@ -88,16 +94,18 @@ TEST(Frontend, CoarseToFineFullScanFindsATurnWithFewerEvaluations) {
   WindowScan bounded;
   bounded.rescan_lo_rad_s = -10.0 / kDegPerRad;
   bounded.rescan_hi_rad_s = 10.0 / kDegPerRad;
-  const ArcEstimate a_bounded =
-      fe_coarse.estimateWindow(events, secToNs(5.0), 0.4, 0.0, coarse.scan_half_range_rad_s, bounded);
-  const double reach_deg_s = (coarse.full_scan_step_rad_s + 3 * coarse.scan_step_rad_s) * kDegPerRad;
+  const ArcEstimate a_bounded = fe_coarse.estimateWindow(events, secToNs(5.0), 0.4, 0.0,
+                                                         coarse.scan_half_range_rad_s, bounded);
+  const double reach_deg_s =
+      (coarse.full_scan_step_rad_s + 3 * coarse.scan_step_rad_s) * kDegPerRad;
   EXPECT_LT(std::abs(a_bounded.omega) * kDegPerRad, 10.0 + reach_deg_s);
   EXPECT_LT(a_bounded.evaluations, a_coarse.evaluations);
   ASSERT_EQ(coarse.one_sided.balance, 0.0);
   WindowScan deep;
   deep.deep_planes = true;
-  EXPECT_THROW(fe_coarse.estimateWindow(events, secToNs(5.0), 0.4, 0.0, coarse.scan_half_range_rad_s, deep),
-               std::logic_error);
+  EXPECT_THROW(
+      fe_coarse.estimateWindow(events, secToNs(5.0), 0.4, 0.0, coarse.scan_half_range_rad_s, deep),
+      std::logic_error);
 }
 
 TEST(Frontend, LowEventRateIsStandstillNotARandomOmega) {
@@ -138,7 +146,7 @@ TEST(Frontend, BadInputIsCountedAndLoopedDataResets) {
   EventVector ev(3);
   ev[0].t_ns = secToNs(2.0);
   ev[1].t_ns = secToNs(2.001);
-  ev[1].x = 400;  // outside the 346x260 sensor
+  ev[1].x = 400;                // outside the 346x260 sensor
   ev[2].t_ns = secToNs(1.999);  // 2 ms back: late, dropped
   EXPECT_FALSE(fe.addEvents(ev));
   EXPECT_EQ(fe.stats().events_outside, 1u);
@@ -205,10 +213,10 @@ TEST(Frontend, SideBalanceCountsTheEventsAboveTheHorizonOnEachSide) {
     for (int i = 0; i < n; ++i) ev.push_back({int64_t(ev.size()), x, y, 1});
   };
   EXPECT_EQ(sideBalance(ev, fwd), 1.0);  // nothing above the horizon
-  add(40, 10, 10);    // left, above
-  add(1000, 150, 200);  // right, below the horizon: not counted
+  add(40, 10, 10);                       // left, above
+  add(1000, 150, 200);                   // right, below the horizon: not counted
   EXPECT_EQ(sideBalance(ev, fwd), 0.0);  // all on the left
-  add(10, 150, 20);   // right, above
+  add(10, 150, 20);                      // right, above
   EXPECT_NEAR(sideBalance(ev, fwd), 10.0 / 40.0, 1e-12);
   add(30, 199, 49);
   EXPECT_NEAR(sideBalance(ev, fwd), 1.0, 1e-12);
@@ -259,10 +267,10 @@ TEST(Frontend, OneSidedDepthIsWhereTheRaysOfTheBusierUpperSideMeet) {
   };
   const double spacing = volume.planeInverseDepth(0) - volume.planeInverseDepth(1);
   EXPECT_EQ(oneSidedDepth(volume, rays, horizon), 0.0);  // no rays
-  addPoints(300, 20, 150, 20, 90, 20.0);    // left, above the horizon
-  addPoints(100, 220, 330, 20, 90, 7.0);    // right, above
-  addPoints(600, 20, 330, 150, 250, 3.0);   // below the horizon: not counted
-  EXPECT_EQ(volume.peakDepth(rays.front()), 0.0);  // nothing voted yet
+  addPoints(300, 20, 150, 20, 90, 20.0);                 // left, above the horizon
+  addPoints(100, 220, 330, 20, 90, 7.0);                 // right, above
+  addPoints(600, 20, 330, 150, 250, 3.0);                // below the horizon: not counted
+  EXPECT_EQ(volume.peakDepth(rays.front()), 0.0);        // nothing voted yet
   volume.vote(rays);
   EXPECT_NEAR(1.0 / oneSidedDepth(volume, rays, horizon), 1.0 / 20.0, spacing);
   volume.clear(rays);

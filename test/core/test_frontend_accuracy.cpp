@@ -27,10 +27,11 @@ struct SequenceRun {
 SequenceRun run(const std::string& name, double seconds, double nominal_speed, bool odometry,
                 const FrontendOptions& base = FrontendOptions()) {
   const sim::SequenceSpec spec = sim::findSequence(name);
-  const CameraModel camera(loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+  const CameraModel camera(
+      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
   const auto trajectory = sim::VehicleTrajectory::fromProfile(spec.profile, spec.trajectory);
-  sim::EventSimulator simulator(sim::buildScene(spec.scene, spec.seed, trajectory), camera, spec.T_base_cam,
-                                trajectory, spec.simulator);
+  sim::EventSimulator simulator(sim::buildScene(spec.scene, spec.seed, trajectory), camera,
+                                spec.T_base_cam, trajectory, spec.simulator);
   FrontendOptions options = base;
   options.nominal_speed_mps = nominal_speed;
   Frontend frontend(options, camera, spec.T_base_cam);
@@ -71,9 +72,10 @@ double rotationRmse(const SequenceRun& r) {
 }
 
 void report(const char* name, const SequenceRun& r, const WindowYawRateResult& w) {
-  std::printf("[frontend accuracy] %s: window yaw rate RMSE %.3f, median %.3f deg/s (%zu windows); "
-              "rotation RPE RMSE %.3f deg/s\n",
-              name, w.rmse_deg_s, w.median_abs_deg_s, w.windows, rotationRmse(r));
+  std::printf(
+      "[frontend accuracy] %s: window yaw rate RMSE %.3f, median %.3f deg/s (%zu windows); "
+      "rotation RPE RMSE %.3f deg/s\n",
+      name, w.rmse_deg_s, w.median_abs_deg_s, w.windows, rotationRmse(r));
 }
 
 }  // namespace
@@ -83,7 +85,7 @@ TEST(FrontendAccuracy, IndoorCircle) {
   const WindowYawRateResult w = windowYawRates(r);
   report("indoor_circle", r, w);
   ASSERT_GE(w.windows, 15u);
-  EXPECT_LE(w.rmse_deg_s, 1.0);  // measured 0.35
+  EXPECT_LE(w.rmse_deg_s, 1.0);     // measured 0.35
   EXPECT_LE(rotationRmse(r), 0.6);  // measured 0.29
   for (const ArcEstimate& a : r.arcs) EXPECT_EQ(a.status, ArcStatus::kOk);
 }
@@ -93,7 +95,7 @@ TEST(FrontendAccuracy, IndoorStraight) {
   const WindowYawRateResult w = windowYawRates(r);
   report("indoor_straight", r, w);
   ASSERT_GE(w.windows, 15u);
-  EXPECT_LE(w.rmse_deg_s, 0.5);  // measured 0.05
+  EXPECT_LE(w.rmse_deg_s, 0.5);     // measured 0.05
   EXPECT_LE(rotationRmse(r), 0.3);  // measured 0.03
 }
 
@@ -116,7 +118,8 @@ TEST(FrontendAccuracy, IndoorLongWithTheShippedConfigAndAnotherSubsamplingSeed) 
   // With subsampling seed 6 a 60 deg/s turn that begins inside a window scores a local maximum
   // near the previous yaw rate that is not flat enough for a rescan at rescan_confidence 0.04,
   // and is held there (30 deg/s off, rotation RMSE 2.29); the shipped 0.07 rescans it.
-  FrontendOptions o = loadPipelineConfig(std::string(VWE_VO_SOURCE_DIR) + "/config/vwe_vo.yaml").frontend;
+  FrontendOptions o =
+      loadPipelineConfig(std::string(VWE_VO_SOURCE_DIR) + "/config/vwe_vo.yaml").frontend;
   o.seed = 6;
   const SequenceRun r = run("indoor_long", 30.5, 0.35, true, o);
   const WindowYawRateResult w = windowYawRates(r);

@@ -54,7 +54,8 @@ void expectSameKeysAndValues(const YAML::Node& expected, const YAML::Node& file,
     double a = 0, b = 0;
     if (isNumber(e, &a) && isNumber(v, &b))
       EXPECT_LE(std::abs(a - b), 1e-12 * std::max(std::abs(a), std::abs(b)))
-          << full << ": struct default " << e.as<std::string>() << ", vwe_vo.yaml " << v.as<std::string>();
+          << full << ": struct default " << e.as<std::string>() << ", vwe_vo.yaml "
+          << v.as<std::string>();
     else
       EXPECT_EQ(e.as<std::string>(), v.as<std::string>()) << full;
   }
@@ -117,7 +118,8 @@ TEST(OptionsYaml, EmittedOptionsLoadBackUnchanged) {
   const PipelineConfig car = loadPipelineConfig(dir + "car.yaml");
   YAML::Node emitted = optionsToYaml(car);
   emitted["camera_calibration"] = dir + "davis346.yaml";
-  const PipelineConfig again = loadPipelineConfig(writeTemp("cfg_emitted.yaml", YAML::Dump(emitted)));
+  const PipelineConfig again =
+      loadPipelineConfig(writeTemp("cfg_emitted.yaml", YAML::Dump(emitted)));
   EXPECT_TRUE(again.warnings.empty()) << again.warnings[0];
   EXPECT_TRUE(again.T_base_cam.isApprox(car.T_base_cam, 1e-12));
   EXPECT_EQ(YAML::Dump(optionsToYaml(again)), YAML::Dump(optionsToYaml(car)));
@@ -160,7 +162,8 @@ TEST(OptionsYaml, UnknownKeysAreReportedAndBadValuesRefused) {
         "cfg_bad.yaml", "camera_calibration: " + cal + "\nfrontend:\n  window_duration_s: -1\n"));
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("frontend.window_duration_s"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("frontend.window_duration_s"), std::string::npos)
+        << e.what();
     EXPECT_NE(std::string(e.what()).find("cfg_bad.yaml"), std::string::npos) << e.what();
   }
 }
@@ -179,7 +182,8 @@ TEST(OptionsYaml, NestedErrorsNameTheFullKey) {
   };
   for (const auto& c : cases) {
     try {
-      loadPipelineConfig(writeTemp("cfg_nested_bad.yaml", "camera_calibration: " + cal + "\n" + c.first));
+      loadPipelineConfig(
+          writeTemp("cfg_nested_bad.yaml", "camera_calibration: " + cal + "\n" + c.first));
       ADD_FAILURE() << c.first << " was accepted";
     } catch (const std::invalid_argument& e) {
       EXPECT_NE(std::string(e.what()).find(c.second), std::string::npos) << e.what();
@@ -200,11 +204,12 @@ TEST(OptionsYaml, NestedErrorsNameTheFullKey) {
 // has no contrast), and every FrameBaselineOptions field is read.
 TEST(OptionsYaml, UnknownKeysAreReportedEverywhere) {
   const std::string cal = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
-  const PipelineConfig cfg = loadPipelineConfig(writeTemp(
-      "cfg_unknown.yaml", "camera_calibration: " + cal +
-                              "\nT_base_cam:\n  translation: [0.1, 0.0, 0.3]\n  rpy: [0.0, 10.0, 0.0]\n"
-                              "mapping:\n  volume: {contrast: variance}\nsimulator: {seed: 3}\n"
-                              "baseline: {seed: 7}\n"));
+  const PipelineConfig cfg = loadPipelineConfig(
+      writeTemp("cfg_unknown.yaml",
+                "camera_calibration: " + cal +
+                    "\nT_base_cam:\n  translation: [0.1, 0.0, 0.3]\n  rpy: [0.0, 10.0, 0.0]\n"
+                    "mapping:\n  volume: {contrast: variance}\nsimulator: {seed: 3}\n"
+                    "baseline: {seed: 7}\n"));
   ASSERT_EQ(cfg.warnings.size(), 3u);
   EXPECT_NE(cfg.warnings[0].find("'simulator'"), std::string::npos) << cfg.warnings[0];
   EXPECT_NE(cfg.warnings[1].find("T_base_cam.rpy"), std::string::npos) << cfg.warnings[1];
@@ -214,16 +219,19 @@ TEST(OptionsYaml, UnknownKeysAreReportedEverywhere) {
 
 TEST(OptionsYaml, VolumeContrastIsReadAndUnknownMeasuresRefused) {
   const std::string cal = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
-  const PipelineConfig cfg = loadPipelineConfig(writeTemp(
-      "cfg_contrast.yaml", "camera_calibration: " + cal + "\nbackend:\n  volume: {contrast: variance}\n"));
+  const PipelineConfig cfg = loadPipelineConfig(
+      writeTemp("cfg_contrast.yaml",
+                "camera_calibration: " + cal + "\nbackend:\n  volume: {contrast: variance}\n"));
   EXPECT_EQ(cfg.backend.volume.contrast, Contrast::kVariance);
   EXPECT_EQ(cfg.frontend.volume.contrast, Contrast::kDensityPerVote);  // the default
   try {
-    loadPipelineConfig(writeTemp("cfg_contrast_bad.yaml",
-                                 "camera_calibration: " + cal + "\nfrontend:\n  volume: {contrast: varaince}\n"));
+    loadPipelineConfig(
+        writeTemp("cfg_contrast_bad.yaml",
+                  "camera_calibration: " + cal + "\nfrontend:\n  volume: {contrast: varaince}\n"));
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("frontend.volume.contrast: 'varaince'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("frontend.volume.contrast: 'varaince'"), std::string::npos)
+        << e.what();
   }
 }
 

@@ -6,8 +6,8 @@
 #include <cmath>
 #include <string>
 
-#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/io/config.h"
+#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sim/event_simulator.h"
 #include "vwe_vo/sim/scene.h"
 #include "vwe_vo/sim/sequences.h"
@@ -19,12 +19,14 @@ namespace {
 constexpr double kDeg = kPi / 180.0;
 
 const CameraModel& camera() {
-  static const CameraModel cam(loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
+  static const CameraModel cam(
+      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
   return cam;
 }
 
-EventVector simulate(const std::vector<ProfileSegment>& profile, double seconds, EventSimulatorOptions opt,
-                     SimulatorStats* stats = nullptr, const std::string& scene = "indoor", uint64_t seed = 5) {
+EventVector simulate(const std::vector<ProfileSegment>& profile, double seconds,
+                     EventSimulatorOptions opt, SimulatorStats* stats = nullptr,
+                     const std::string& scene = "indoor", uint64_t seed = 5) {
   const auto tr = VehicleTrajectory::fromProfile(profile);
   EventSimulator sim(buildScene(scene, seed, tr), camera(), defaultTBaseCam(), tr, opt);
   EventVector ev;
@@ -34,11 +36,14 @@ EventVector simulate(const std::vector<ProfileSegment>& profile, double seconds,
 }
 
 size_t countIn(const EventVector& ev, double t0, double t1) {
-  return std::count_if(ev.begin(), ev.end(), [&](const PixelEvent& e) { return e.t_ns >= secToNs(t0) && e.t_ns < secToNs(t1); });
+  return std::count_if(ev.begin(), ev.end(), [&](const PixelEvent& e) {
+    return e.t_ns >= secToNs(t0) && e.t_ns < secToNs(t1);
+  });
 }
 
 TEST(Simulator, EventsSortedAndInsideSensor) {
-  const EventVector ev = simulate(circleProfile(0.4, 25 * kDeg, 1.0), 0.25, EventSimulatorOptions());
+  const EventVector ev =
+      simulate(circleProfile(0.4, 25 * kDeg, 1.0), 0.25, EventSimulatorOptions());
   ASSERT_GT(ev.size(), 10000u);
   for (size_t i = 0; i < ev.size(); ++i) {
     ASSERT_LT(ev[i].x, 346);
@@ -92,7 +97,8 @@ TEST(Simulator, SameEventsWhateverTheThreadCount) {
   ASSERT_EQ(ev[0].size(), ev[1].size());
   for (size_t i = 0; i < ev[0].size(); ++i) {
     const PixelEvent &a = ev[0][i], &b = ev[1][i];
-    ASSERT_TRUE(a.t_ns == b.t_ns && a.x == b.x && a.y == b.y && a.polarity == b.polarity) << "event " << i;
+    ASSERT_TRUE(a.t_ns == b.t_ns && a.x == b.x && a.y == b.y && a.polarity == b.polarity)
+        << "event " << i;
   }
 }
 
@@ -105,7 +111,8 @@ TEST(Simulator, StaticCameraGivesOnlyNoiseAtConfiguredRate) {
   EXPECT_EQ(st.signal_events, 0u);
   const double expected = 346.0 * 260.0 * opt.noise_rate_hz * T;
   EXPECT_NEAR(static_cast<double>(ev.size()), expected, 5.0 * std::sqrt(expected));
-  const double on = std::count_if(ev.begin(), ev.end(), [](const PixelEvent& e) { return e.polarity > 0; });
+  const double on =
+      std::count_if(ev.begin(), ev.end(), [](const PixelEvent& e) { return e.polarity > 0; });
   EXPECT_NEAR(on / ev.size(), 0.5, 0.02);
 }
 
@@ -119,7 +126,8 @@ TEST(Simulator, EventRateGrowsWithSpeed) {
 
 TEST(Simulator, PolarityBalanceIsSane) {
   const EventVector ev = simulate(circleProfile(0.4, 25 * kDeg, 1.0), 0.3, EventSimulatorOptions());
-  const double on = std::count_if(ev.begin(), ev.end(), [](const PixelEvent& e) { return e.polarity > 0; });
+  const double on =
+      std::count_if(ev.begin(), ev.end(), [](const PixelEvent& e) { return e.polarity > 0; });
   EXPECT_GT(on / ev.size(), 0.3);
   EXPECT_LT(on / ev.size(), 0.7);
 }
@@ -195,7 +203,8 @@ TEST(Simulator, HdrToggleChangesEventRate) {
 TEST(Simulator, DepthOfAKnownWall) {
   // A wall at x = 3 m facing a camera 0.1 m ahead of base_link at the origin, looking along +x.
   Scene scene;
-  scene.textures.push_back(std::make_shared<Texture>(makeTexture(TextureStyle::kGeneric, 64, 0.05f, 1)));
+  scene.textures.push_back(
+      std::make_shared<Texture>(makeTexture(TextureStyle::kGeneric, 64, 0.05f, 1)));
   scene.addRect(0, 3.0f, Eigen::Vector2f(-50, -50), Eigen::Vector2f(50, 50), 0, 1.0f, 1);
   const auto tr = VehicleTrajectory::fromProfile(straightProfile(0.0, 1.0));
   EventSimulator sim(scene, camera(), defaultTBaseCam(), tr);
@@ -214,7 +223,8 @@ TEST(SimulatorTrajectory, CircleHasRadiusVOverOmegaAndTangentHeading) {
     EXPECT_NEAR((p.head<2>() - centre).norm(), v / w, 1e-6);
     const Vec3 q = tr.planar(t + 1000000);
     const double dir = std::atan2(q.y() - p.y(), q.x() - p.x());
-    if (t + 1000000 <= tr.durationNs()) EXPECT_NEAR(wrapAngle(dir - p.z() - 0.5 * w * 1e-3), 0.0, 1e-5);
+    if (t + 1000000 <= tr.durationNs())
+      EXPECT_NEAR(wrapAngle(dir - p.z() - 0.5 * w * 1e-3), 0.0, 1e-5);
   }
   EXPECT_NEAR(tr.pathLength(), 2 * kPi * v / w, 1e-3);
   EXPECT_NEAR(tr.planar(tr.durationNs()).head<2>().norm(), 0.0, 1e-6);  // closed loop
@@ -224,8 +234,10 @@ TEST(SimulatorTrajectory, LongIndoorHasAnExactStandstill) {
   const auto tr = VehicleTrajectory::fromProfile(longIndoorProfile(0.35, 3.0));
   double still = 0, longest = 0;
   for (int64_t t = 0; t <= tr.durationNs(); t += 10000000) {
-    if (tr.speed(t) == 0.0 && tr.yawRate(t) == 0.0) still += 0.01;
-    else still = 0;
+    if (tr.speed(t) == 0.0 && tr.yawRate(t) == 0.0)
+      still += 0.01;
+    else
+      still = 0;
     longest = std::max(longest, still);
   }
   EXPECT_GT(longest, 2.95);
@@ -279,7 +291,8 @@ TEST(SimulatorSequences, UnknownNameListsValidOnes) {
     EXPECT_GT(s.duration_s, 5.0) << s.name;
     EXPECT_GT(s.path_length_m, 1.0) << s.name;
   }
-  EXPECT_THROW(buildScene("moon", 1, VehicleTrajectory::fromProfile(straightProfile(1, 1))), std::invalid_argument);
+  EXPECT_THROW(buildScene("moon", 1, VehicleTrajectory::fromProfile(straightProfile(1, 1))),
+               std::invalid_argument);
 }
 
 }  // namespace

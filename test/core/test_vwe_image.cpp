@@ -2,8 +2,8 @@
 #include <gtest/gtest.h>
 
 #include "../common/synthetic_events.h"
-#include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/io/config.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/vwe/vwe_image.h"
 
 using namespace vwe_vo;

@@ -5,8 +5,8 @@
 #include <tf2_ros/transform_listener.h>
 
 #include "frontend_node_harness.h"
-#include "vwe_vo/SplineTrajectory.h"
 #include "node_test_util.h"
+#include "vwe_vo/SplineTrajectory.h"
 
 using namespace vwe_vo;
 using namespace vwe_vo::test;
@@ -103,7 +103,8 @@ TEST_F(BackendNode, PublishesTheRefinedSplineOdometryAndTf) {
   const size_t trajectories_before = recorder->trajectories().size();
   const size_t odoms_before = recorder->odometry().size();
   const auto [t0, t1] = harness->stream(4.0);
-  ASSERT_TRUE(recorder->waitForTrajectories(trajectories_before + 2, 60.0)) << "fewer than 2 refinements published";
+  ASSERT_TRUE(recorder->waitForTrajectories(trajectories_before + 2, 60.0))
+      << "fewer than 2 refinements published";
 
   const SplineTrajectory traj = recorder->trajectories().back();
   EXPECT_EQ(traj.header.frame_id, "odom");
@@ -119,7 +120,8 @@ TEST_F(BackendNode, PublishesTheRefinedSplineOdometryAndTf) {
   EXPECT_NEAR(spline.velocity(u_mid).norm(), kV, 0.1);
 
   const std::vector<nav_msgs::Odometry> all_odoms = recorder->odometry();
-  const std::vector<nav_msgs::Odometry> odoms(all_odoms.begin() + long(odoms_before), all_odoms.end());
+  const std::vector<nav_msgs::Odometry> odoms(all_odoms.begin() + long(odoms_before),
+                                              all_odoms.end());
   ASSERT_GE(odoms.size(), 20u);
   for (size_t i = 1; i < odoms.size(); ++i)
     ASSERT_GT(odoms[i].header.stamp, odoms[i - 1].header.stamp);
@@ -139,8 +141,8 @@ TEST_F(BackendNode, PublishesTheRefinedSplineOdometryAndTf) {
 
   // tf odom -> base_link at the stamps of the odometry.
   std::string error;
-  EXPECT_TRUE(tf_buffer->canTransform("odom", "base_link", last.header.stamp,
-                                      ros::Duration(5.0), &error))
+  EXPECT_TRUE(
+      tf_buffer->canTransform("odom", "base_link", last.header.stamp, ros::Duration(5.0), &error))
       << error;
   const geometry_msgs::TransformStamped tf =
       tf_buffer->lookupTransform("odom", "base_link", last.header.stamp);
@@ -180,7 +182,8 @@ int main(int argc, char** argv) {
   ros::AsyncSpinner spinner(2);
   spinner.start();
   const int result = RUN_ALL_TESTS();
-  spinner.stop();  // no callback may run while the recorders (their subscribers, mutexes) are destroyed
+  spinner.stop();  // no callback may run while the recorders (their subscribers, mutexes) are
+                   // destroyed
   BackendNode::tf_listener.reset();
   BackendNode::tf_buffer.reset();
   BackendNode::recorder.reset();

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <fcntl.h>
+#include <geometry_msgs/PoseStamped.h>
 #include <gtest/gtest.h>
 #include <nav_msgs/Odometry.h>
 #include <ros/ros.h>
@@ -25,8 +26,6 @@
 #include <string>
 #include <vector>
 
-#include <geometry_msgs/PoseStamped.h>
-
 #include "vwe_vo/eval/evaluation.h"
 #include "vwe_vo/io/trajectory_io.h"
 #include "vwe_vo/ros/conversions.h"
@@ -42,7 +41,8 @@ namespace test {
 class TempDir {
  public:
   TempDir() {
-    std::string pattern = (std::filesystem::temp_directory_path() / "vwe_vo_rostest_XXXXXX").string();
+    std::string pattern =
+        (std::filesystem::temp_directory_path() / "vwe_vo_rostest_XXXXXX").string();
     if (!mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed for " + pattern);
     path_ = pattern;
   }
@@ -58,11 +58,14 @@ class TempDir {
   std::string path_;
 };
 
-inline std::string toolPath(const std::string& name) { return std::string(VWE_VO_TOOLS_DIR) + "/" + name; }
+inline std::string toolPath(const std::string& name) {
+  return std::string(VWE_VO_TOOLS_DIR) + "/" + name;
+}
 
 /// Last `lines` lines of a text file that contain `needle` (for failure messages), without
 /// rosbag's progress lines.
-inline std::string tailOf(const std::string& path, size_t lines = 30, const std::string& needle = "") {
+inline std::string tailOf(const std::string& path, size_t lines = 30,
+                          const std::string& needle = "") {
   std::ifstream in(path);
   std::vector<std::string> all;
   for (std::string l; std::getline(in, l);)
@@ -70,14 +73,16 @@ inline std::string tailOf(const std::string& path, size_t lines = 30, const std:
         l.find(needle) != std::string::npos)
       all.push_back(l);
   std::string out;
-  for (size_t i = all.size() > lines ? all.size() - lines : 0; i < all.size(); ++i) out += all[i] + "\n";
+  for (size_t i = all.size() > lines ? all.size() - lines : 0; i < all.size(); ++i)
+    out += all[i] + "\n";
   return out;
 }
 
 /// A child process in its own process group with stdout and stderr going to a log file.
 class ChildProcess {
  public:
-  ChildProcess(const std::vector<std::string>& argv, const std::string& log_path) : log_path_(log_path) {
+  ChildProcess(const std::vector<std::string>& argv, const std::string& log_path)
+      : log_path_(log_path) {
     std::vector<char*> args;
     for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
     args.push_back(nullptr);
@@ -137,7 +142,8 @@ class ChildProcess {
 };
 
 /// Runs a command line to its end; returns its exit code. Output goes to log_path.
-inline int runToEnd(const std::vector<std::string>& argv, const std::string& log_path, double timeout_s) {
+inline int runToEnd(const std::vector<std::string>& argv, const std::string& log_path,
+                    double timeout_s) {
   ChildProcess child(argv, log_path);
   if (!child.wait(timeout_s)) return -1;
   return child.exitCode();
@@ -153,14 +159,16 @@ struct SimulatedBag {
 
 /// Simulates `duration_s` of a standard sequence (fixed seed) into dir with vwe_vo_sim.
 /// Throws std::runtime_error with the tail of the simulator's log if it fails.
-inline SimulatedBag simulateBag(const std::string& dir, const std::string& sequence, double duration_s) {
+inline SimulatedBag simulateBag(const std::string& dir, const std::string& sequence,
+                                double duration_s) {
   const std::string log = dir + "/sim.log";
   std::ostringstream d;
   d << duration_s;
-  const int rc = runToEnd({toolPath("vwe_vo_sim"), "--sequence", sequence, "--format", "bag", "--duration", d.str(),
-                           "--out", dir},
+  const int rc = runToEnd({toolPath("vwe_vo_sim"), "--sequence", sequence, "--format", "bag",
+                           "--duration", d.str(), "--out", dir},
                           log, 180.0);
-  if (rc != 0) throw std::runtime_error("vwe_vo_sim exited with " + std::to_string(rc) + ":\n" + tailOf(log));
+  if (rc != 0)
+    throw std::runtime_error("vwe_vo_sim exited with " + std::to_string(rc) + ":\n" + tailOf(log));
   SimulatedBag bag;
   bag.bag_path = dir + "/" + sequence + ".bag";
   bag.gt_path = dir + "/groundtruth.txt";

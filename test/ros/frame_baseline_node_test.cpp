@@ -19,13 +19,13 @@
 #include <set>
 #include <vector>
 
+#include "node_test_util.h"
 #include "vwe_vo/io/files.h"
 #include "vwe_vo/io/options_yaml.h"
-#include "vwe_vo/sim/frame_simulator.h"
-#include "vwe_vo/sim/sequences.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/topics.h"
-#include "node_test_util.h"
+#include "vwe_vo/sim/frame_simulator.h"
+#include "vwe_vo/sim/sequences.h"
 
 using namespace vwe_vo;
 
@@ -197,7 +197,9 @@ class FrameBaselineNode : public testing::Test {
   inline static size_t odoms_before_calibration_ = 0;
 };
 
-Harness& harness() { return *FrameBaselineNode::harness; }
+Harness& harness() {
+  return *FrameBaselineNode::harness;
+}
 
 bool finite(const nav_msgs::Odometry& o) {
   const auto& p = o.pose.pose;

@@ -2,9 +2,10 @@
 // 0.4 m/s, 25 deg/s; generated into a temporary directory) into frontend_node + backend_node on
 // simulated time. Half rate: the two need ~0.9 + ~1.25 core-seconds per second of this data
 // (scripts/replay_check.py), more than the 2 cores of the machines this runs on; latencies below
-// are on the simulated clock. The back-end must publish /vwe/trajectory once per update_interval_s of config/vwe_vo.yaml,
-// /vwe/odom and the tf odom -> base_link at ~odom_rate_hz in data time, keep up with the playback,
-// and the tf tree odom -> base_link -> davis must answer lookups at recent times while it plays.
+// are on the simulated clock. The back-end must publish /vwe/trajectory once per update_interval_s
+// of config/vwe_vo.yaml, /vwe/odom and the tf odom -> base_link at ~odom_rate_hz in data time, keep
+// up with the playback, and the tf tree odom -> base_link -> davis must answer lookups at recent
+// times while it plays.
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_msgs/TFMessage.h>
 #include <tf2_ros/buffer.h>
@@ -13,8 +14,8 @@
 #include <memory>
 
 #include "bag_replay.h"
-#include "vwe_vo/io/files.h"
 #include "vwe_vo/SplineTrajectory.h"
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/topics.h"
 
@@ -29,10 +30,10 @@ constexpr double kRate = 0.5;         // playback rate
 
 /// One look at the tf tree while the bag plays.
 struct TfSample {
-  ros::Time now;                         // simulated clock when looked
+  ros::Time now;  // simulated clock when looked
   bool base_ok = false, camera_ok = false;
-  ros::Time base_stamp;                  // stamp of the newest odom -> base_link
-  Pose3 T_odom_base, T_odom_cam;         // at base_stamp
+  ros::Time base_stamp;           // stamp of the newest odom -> base_link
+  Pose3 T_odom_base, T_odom_cam;  // at base_stamp
   std::string error;
 };
 
@@ -73,10 +74,11 @@ void playBag(ros::NodeHandle& nh, Replay* replay) {
   TopicRecorder<tf2_msgs::TFMessage> tf_msgs(nh, "/tf");
   tf2_ros::Buffer tf(ros::Duration(30.0));
   tf2_ros::TransformListener listener(tf);
-  if (!waitUntil([&] { return trajectories.numPublishers() > 0 && odoms.numPublishers() > 0; }, 30.0))
+  if (!waitUntil([&] { return trajectories.numPublishers() > 0 && odoms.numPublishers() > 0; },
+                 30.0))
     throw std::runtime_error("backend_node did not come up");
-  ChildProcess play({"rosbag", "play", "--clock", "--delay", "2", "--quiet", "-r", std::to_string(kRate),
-                     replay->bag.bag_path},
+  ChildProcess play({"rosbag", "play", "--clock", "--delay", "2", "--quiet", "-r",
+                     std::to_string(kRate), replay->bag.bag_path},
                     replay->dir->path() + "/play.log");
   // While it plays: look at the tf tree every 0.5 s (wall) once the odometry has started.
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(kBagDurationS / kRate + 60.0);
@@ -87,18 +89,26 @@ void playBag(ros::NodeHandle& nh, Replay* replay) {
   play.stop();
   // The nodes finish: odometry up to the last window, then nothing new for 3 s.
   const int64_t end_ns = replay->bag.gt.back().t_ns - secToNs(0.7);
-  waitUntil([&] { const auto o = odoms.all(); return !o.empty() && toNs(o.back().msg.header.stamp) > end_ns; }, 30.0);
+  waitUntil(
+      [&] {
+        const auto o = odoms.all();
+        return !o.empty() && toNs(o.back().msg.header.stamp) > end_ns;
+      },
+      30.0);
   waitUntilQuiet([&] { return odoms.size() + trajectories.size(); }, 3.0, 30.0);
   replay->trajectories = trajectories.all();
   replay->odoms = odoms.all();
   for (const auto& m : tf_msgs.all())
     for (const geometry_msgs::TransformStamped& t : m.msg.transforms)
-      if (t.header.frame_id == "odom" && t.child_frame_id == "base_link") replay->tf_base.push_back(t);
+      if (t.header.frame_id == "odom" && t.child_frame_id == "base_link")
+        replay->tf_base.push_back(t);
   replay->play_exit_code = play.exitCode();
   replay->play_log = tailOf(play.logPath());
 }
 
-double eventsStartS(const Replay& replay) { return nsToSec(replay.bag.gt.front().t_ns); }
+double eventsStartS(const Replay& replay) {
+  return nsToSec(replay.bag.gt.front().t_ns);
+}
 
 }  // namespace
 
@@ -130,11 +140,13 @@ TEST_F(FrontendBackendBag, TrajectoryComesOncePerUpdateInterval) {
   // A refinement once update_interval_s (1 s) of new arcs are in: with 0.3 s windows every 4th
   // arc (1.2 s), so the 16 windows of 5 s give 4. One less is allowed: a back-end that is behind
   // (a short CPU) folds an interval into the next refinement.
-  const double window_s = loadPipelineConfig(defaultConfigDir() + "/vwe_vo.yaml").frontend.window_duration_s;
+  const double window_s =
+      loadPipelineConfig(defaultConfigDir() + "/vwe_vo.yaml").frontend.window_duration_s;
   const double spacing_s = std::ceil(b.update_interval_s / window_s - 1e-9) * window_s;
   const int expected = int(int(kBagDurationS / window_s) * window_s / spacing_s);
   for (const auto& t : trajs)
-    std::printf("refinement up to %.3f s received at %.3f s\n", t.msg.valid_to.toSec(), t.received.toSec());
+    std::printf("refinement up to %.3f s received at %.3f s\n", t.msg.valid_to.toSec(),
+                t.received.toSec());
   EXPECT_GE(int(trajs.size()), expected - 1);
   EXPECT_LE(int(trajs.size()), expected);
   for (size_t i = 0; i < trajs.size(); ++i) {
@@ -155,7 +167,8 @@ TEST_F(FrontendBackendBag, OdometryAndTfAtTheOdomRate) {
   ASSERT_GE(odoms.size(), 2u);
   const double step_s = 1.0 / kOdomRateHz;
   for (size_t i = 1; i < odoms.size(); ++i)  // every step of 50 ms in data time, none missing
-    ASSERT_NEAR((odoms[i].msg.header.stamp - odoms[i - 1].msg.header.stamp).toSec(), step_s, 1e-3) << "odom " << i;
+    ASSERT_NEAR((odoms[i].msg.header.stamp - odoms[i - 1].msg.header.stamp).toSec(), step_s, 1e-3)
+        << "odom " << i;
   // From the first window to the last: 5 s less one window at either end, at 20 Hz.
   const double first_s = odoms.front().msg.header.stamp.toSec() - eventsStartS(*replay);
   const double last_s = odoms.back().msg.header.stamp.toSec() - eventsStartS(*replay);
@@ -166,8 +179,9 @@ TEST_F(FrontendBackendBag, OdometryAndTfAtTheOdomRate) {
   // the window; the back-end publishes the odometry with each arc).
   std::vector<double> latency;
   for (const auto& o : odoms) latency.push_back((o.received - o.msg.header.stamp).toSec());
-  std::printf("%zu odometry messages from %.2f to %.2f s, latency median %.2f max %.2f s\n", odoms.size(), first_s,
-              last_s, median(latency), *std::max_element(latency.begin(), latency.end()));
+  std::printf("%zu odometry messages from %.2f to %.2f s, latency median %.2f max %.2f s\n",
+              odoms.size(), first_s, last_s, median(latency),
+              *std::max_element(latency.begin(), latency.end()));
   EXPECT_LT(median(latency), 1.0);
   EXPECT_LT(*std::max_element(latency.begin(), latency.end()), 3.0);
   // The circle's 25 deg/s in the odometry's twist.
@@ -203,7 +217,9 @@ TEST_F(FrontendBackendBag, TfTreeAnswersAtRecentTimesWhileItPlays) {
     EXPECT_LT((s.T_odom_cam.linear() - expected.linear()).norm(), 1e-6) << "look " << i;
   }
   // The vehicle moved: the newest base_link is away from the first one it was seen at.
-  EXPECT_GT((samples.back().T_odom_base.translation() - samples.front().T_odom_base.translation()).norm(), 0.3);
+  EXPECT_GT(
+      (samples.back().T_odom_base.translation() - samples.front().T_odom_base.translation()).norm(),
+      0.3);
 }
 
 int main(int argc, char** argv) {

@@ -5,8 +5,8 @@
 #include <memory>
 
 #include "bag_replay.h"
-#include "vwe_vo/io/files.h"
 #include "vwe_vo/AckermannArc.h"
+#include "vwe_vo/io/files.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/topics.h"
 
@@ -88,23 +88,27 @@ TEST_F(FrontendBag, ArcsComeAtTheWindowRateAndKeepUp) {
     const AckermannArc& a = arcs[i].msg;
     EXPECT_NEAR((a.t_end - a.t_start).toSec(), window_s, 0.01) << "arc " << i;
     if (i > 0) {  // back to back: no window skipped or repeated
-      EXPECT_NEAR((a.header.stamp - arcs[i - 1].msg.header.stamp).toSec(), window_s, 0.01) << "arc " << i;
+      EXPECT_NEAR((a.header.stamp - arcs[i - 1].msg.header.stamp).toSec(), window_s, 0.01)
+          << "arc " << i;
     }
     // Published on the simulated clock within 1.5 s of the window's end: the front-end keeps up
     // with the playback (its ~max_latency_s is 1 s; beyond it, windows would be skipped).
     EXPECT_LT((arcs[i].received - a.t_end).toSec(), 1.5) << "arc " << i << " came late";
     // rosbag play publishes /clock at 100 Hz: the simulated clock the test reads may lag the
     // packet that closed the window by up to one clock period (seen: 1.4 ms).
-    EXPECT_GE(arcs[i].received + ros::Duration(0.01), a.t_end) << "arc " << i << " before its data was played";
+    EXPECT_GE(arcs[i].received + ros::Duration(0.01), a.t_end)
+        << "arc " << i << " before its data was played";
   }
   ASSERT_FALSE(arcs.empty());
   double max_latency_s = 0;
-  for (const auto& a : arcs) max_latency_s = std::max(max_latency_s, (a.received - a.msg.t_end).toSec());
-  std::printf("%zu arcs over %.1f s of bag (expected %d), latest %.2f s after their window\n", arcs.size(),
-              kBagDurationS, expected, max_latency_s);
+  for (const auto& a : arcs)
+    max_latency_s = std::max(max_latency_s, (a.received - a.msg.t_end).toSec());
+  std::printf("%zu arcs over %.1f s of bag (expected %d), latest %.2f s after their window\n",
+              arcs.size(), kBagDurationS, expected, max_latency_s);
   // Together they cover the bag: from its start to its last complete window.
   EXPECT_LT(dtSec(toNs(arcs.front().msg.t_start), replay->bag.gt.front().t_ns), 2 * window_s);
-  EXPECT_GT(dtSec(toNs(arcs.back().msg.t_end), replay->bag.gt.front().t_ns), kBagDurationS - 2 * window_s);
+  EXPECT_GT(dtSec(toNs(arcs.back().msg.t_end), replay->bag.gt.front().t_ns),
+            kBagDurationS - 2 * window_s);
 }
 
 TEST_F(FrontendBag, YawRatesAgreeWithGroundTruth) {
@@ -113,13 +117,14 @@ TEST_F(FrontendBag, YawRatesAgreeWithGroundTruth) {
   std::vector<WindowYawRate> windows;
   for (const auto& a : replay->arcs) {
     EXPECT_EQ(a.msg.status, AckermannArc::OK) << "arc at " << a.msg.header.stamp;
-    windows.push_back({toNs(a.msg.t_start), toNs(a.msg.t_end), a.msg.omega, a.msg.status == AckermannArc::STANDSTILL});
+    windows.push_back({toNs(a.msg.t_start), toNs(a.msg.t_end), a.msg.omega,
+                       a.msg.status == AckermannArc::STANDSTILL});
   }
   const WindowYawRateResult r = evaluateWindowYawRates(gt, windows);
   ASSERT_EQ(r.windows, windows.size());
   EXPECT_EQ(r.outside, 0u);
-  std::printf("window yaw rate vs /gt/pose: RMSE %.3f deg/s, max %.3f deg/s over %zu windows\n", r.rmse_deg_s,
-              r.max_abs_deg_s, r.windows);
+  std::printf("window yaw rate vs /gt/pose: RMSE %.3f deg/s, max %.3f deg/s over %zu windows\n",
+              r.rmse_deg_s, r.max_abs_deg_s, r.windows);
   // The same bag offline (vwe_vo_offline, same config) gives RMSE 0.52 deg/s, worst window
   // 1.0 deg/s, at a true 25 deg/s. A wrong sign, a missed window or an arc
   // estimated on the wrong events is off by 5-50 deg/s.

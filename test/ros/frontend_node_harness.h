@@ -15,12 +15,12 @@
 #include <mutex>
 
 #include "../common/synthetic_events.h"
+#include "node_test_util.h"
 #include "vwe_vo/io/files.h"
-#include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/topics.h"
-#include "node_test_util.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
 
 namespace vwe_vo {
 namespace test {
@@ -176,7 +176,8 @@ class Harness {
     return test::inputCounter(logs_, kind, key);
   }
   /// True once that counter exceeds `above` (the node logs its status every ~status_period_s).
-  bool inputCounterAbove(const std::string& kind, const std::string& key, long above, double timeout_s = 10.0) {
+  bool inputCounterAbove(const std::string& kind, const std::string& key, long above,
+                         double timeout_s = 10.0) {
     return test::waitForInputCounterAbove(mutex_, logs_, kind, key, above, timeout_s);
   }
 
@@ -221,8 +222,8 @@ class Harness {
 };
 
 /// The fixture of the frontend_node rostests: one Harness (one node, one data clock) for every
-/// test, created and connected once; main() destroys it after the spinner stopped, since no callback
-/// may run while it goes.
+/// test, created and connected once; main() destroys it after the spinner stopped, since no
+/// callback may run while it goes.
 class HarnessTest : public testing::Test {
  public:
   inline static std::unique_ptr<Harness> harness;

@@ -50,7 +50,8 @@ TEST_F(FrontendNode, RecoversTheYawRateAtTheWindowRate) {
 
   // Dead-reckoned odometry: one per arc, in odom, twist = the arc, yaw = omega * elapsed time.
   const std::vector<nav_msgs::Odometry> all_odoms = harness->odometry();
-  const std::vector<nav_msgs::Odometry> odoms(all_odoms.begin() + long(odoms_before), all_odoms.end());
+  const std::vector<nav_msgs::Odometry> odoms(all_odoms.begin() + long(odoms_before),
+                                              all_odoms.end());
   ASSERT_GE(odoms.size(), arcs.size());
   const nav_msgs::Odometry& last = odoms.back();
   EXPECT_EQ(last.header.frame_id, "odom");
@@ -82,8 +83,10 @@ TEST_F(FrontendNode, EmptyPacketsOutsideEventsAndLateEventsAreCountedNotFatal) {
   const std::vector<AckermannArc> arcs = harness->arcsIn(t0, t1, 4);
   EXPECT_GE(arcs.size(), 4u);
   expectTrueArcs(arcs);
-  EXPECT_TRUE(harness->inputCounterAbove("events", "empty", empty_before)) << "empty packets not counted";
-  EXPECT_TRUE(harness->inputCounterAbove("events", "outside", outside_before)) << "outside events not counted";
+  EXPECT_TRUE(harness->inputCounterAbove("events", "empty", empty_before))
+      << "empty packets not counted";
+  EXPECT_TRUE(harness->inputCounterAbove("events", "outside", outside_before))
+      << "outside events not counted";
   EXPECT_TRUE(harness->logged("older than the newest one dropped", rosgraph_msgs::Log::WARN));
 }
 
@@ -110,7 +113,8 @@ TEST_F(FrontendNode, CameraInfoOfAnotherSizeIsRefusedAndTheFirstKept) {
   const long refused_before = harness->inputCounter("camera_info", "refused");
   harness->publishCameraInfo(test::cameraInfoOfAnotherSize(harness->validCameraInfo()));
   const auto [t0, t1] = harness->stream(1.2);
-  EXPECT_TRUE(harness->inputCounterAbove("camera_info", "refused", refused_before)) << "not counted as refused";
+  EXPECT_TRUE(harness->inputCounterAbove("camera_info", "refused", refused_before))
+      << "not counted as refused";
   const std::vector<AckermannArc> arcs = harness->arcsIn(t0, t1, 3);
   EXPECT_GE(arcs.size(), 3u);
   expectTrueArcs(arcs);

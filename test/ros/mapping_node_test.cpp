@@ -19,12 +19,12 @@
 #include <mutex>
 
 #include "../common/synthetic_events.h"
-#include "vwe_vo/trajectory/ackermann_arc.h"
-#include "vwe_vo/trajectory/bspline.h"
+#include "node_test_util.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/topics.h"
-#include "node_test_util.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/trajectory/bspline.h"
 
 using namespace vwe_vo;
 
@@ -193,7 +193,7 @@ class Harness {
   CameraModel camera_;
   Pose3 T_base_cam_;
   int64_t newest_ns_ = secToNs(99.0);  // the data clock: newest event streamed
-  std::mutex mutex_;  // guards the received messages below
+  std::mutex mutex_;                   // guards the received messages below
   std::vector<sensor_msgs::PointCloud2> points_, clouds_;
   std::vector<sensor_msgs::Image> depths_;
   std::vector<rosgraph_msgs::Log> logs_;
@@ -239,7 +239,8 @@ TEST_F(MappingNode, EventsWaitForTheTrajectoryThenMapNearTheTruePoints) {
 
   // 0.8 m of travel: two keyframes of 0.3 m close on the way, the last one by the time-out.
   const std::vector<sensor_msgs::PointCloud2> all_clouds = harness->waitForPoints(before + 2, 40.0);
-  const std::vector<sensor_msgs::PointCloud2> clouds(all_clouds.begin() + long(before), all_clouds.end());
+  const std::vector<sensor_msgs::PointCloud2> clouds(all_clouds.begin() + long(before),
+                                                     all_clouds.end());
   ASSERT_GE(clouds.size(), 2u) << "no keyframe clouds on /vwe/map/points";
   size_t total = 0;
   std::vector<double> errors;
@@ -251,15 +252,17 @@ TEST_F(MappingNode, EventsWaitForTheTrajectoryThenMapNearTheTruePoints) {
     EXPECT_EQ(c.frame_id, "odom");
     EXPECT_TRUE(c.all_finite);
     total += c.points.size();
-    for (const Vec3& p : c.points) errors.push_back(nearest(p, truth) / std::max(1.0, p.head<2>().norm()));
+    for (const Vec3& p : c.points)
+      errors.push_back(nearest(p, truth) / std::max(1.0, p.head<2>().norm()));
   }
   EXPECT_GT(total, 100u);
   ASSERT_FALSE(errors.empty());
   std::sort(errors.begin(), errors.end());
-  std::printf("[mapping_node] %zu points, distance to the nearest true point / depth: 25 %% %.3f, "
-              "median %.3f, 75 %% %.3f\n",
-              errors.size(), errors[errors.size() / 4], errors[errors.size() / 2],
-              errors[3 * errors.size() / 4]);
+  std::printf(
+      "[mapping_node] %zu points, distance to the nearest true point / depth: 25 %% %.3f, "
+      "median %.3f, 75 %% %.3f\n",
+      errors.size(), errors[errors.size() / 4], errors[errors.size() / 2],
+      errors[3 * errors.size() / 4]);
   EXPECT_LT(errors[errors.size() / 2], 0.05) << "median distance to the true points / depth";
 
   // The fused global map (throttled) and the depth image of a keyframe.
@@ -275,8 +278,8 @@ TEST_F(MappingNode, EventsWaitForTheTrajectoryThenMapNearTheTruePoints) {
 
 TEST_F(MappingNode, SplineWithNanIsRefused) {
   const int64_t t_ref = harness->nextRef(2.0);
-  SplineTrajectory msg =
-      splineToMsg(harness->trueSpline(t_ref, t_ref - secToNs(1.0), t_ref + secToNs(1.0)), 0, "odom");
+  SplineTrajectory msg = splineToMsg(
+      harness->trueSpline(t_ref, t_ref - secToNs(1.0), t_ref + secToNs(1.0)), 0, "odom");
   msg.control_x[2] = std::numeric_limits<double>::quiet_NaN();
   harness->publishSpline(msg);
   EXPECT_TRUE(harness->logged("control point 2 is not finite", rosgraph_msgs::Log::WARN));
@@ -289,8 +292,8 @@ TEST_F(MappingNode, EventsTheTrajectoryDoesNotCoverAreSkippedAndCounted) {
   harness->publishSpline(
       splineToMsg(harness->trueSpline(t_ref, t_ref, t_ref + secToNs(1.6)), 0, "odom"));
   harness->streamEvents(t_ref, 2.0, 120000, 8);
-  EXPECT_TRUE(harness->logged("not covered by the trajectory skipped", rosgraph_msgs::Log::WARN,
-                              30.0));
+  EXPECT_TRUE(
+      harness->logged("not covered by the trajectory skipped", rosgraph_msgs::Log::WARN, 30.0));
   EXPECT_GT(harness->waitForPoints(before + 1, 30.0).size(), before) << "the covered half maps";
 }
 

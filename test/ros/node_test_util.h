@@ -16,8 +16,8 @@ namespace test {
 
 /// True if `logs` (guarded by `mutex`) gets a line containing `text` at `level` or above within
 /// timeout_s of wall time.
-inline bool waitForLog(std::mutex& mutex, const std::vector<rosgraph_msgs::Log>& logs, const std::string& text,
-                       uint8_t level, double timeout_s) {
+inline bool waitForLog(std::mutex& mutex, const std::vector<rosgraph_msgs::Log>& logs,
+                       const std::string& text, uint8_t level, double timeout_s) {
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
   do {
     {
@@ -31,9 +31,11 @@ inline bool waitForLog(std::mutex& mutex, const std::vector<rosgraph_msgs::Log>&
 }
 
 /// The value of `key` in the `kind` part of the newest status line with the node's input counters
-/// ("... input: events in=120 lost=0 empty=3 ...; odom in=60 ...; camera_info refused=0", the format
-/// of NodeInput::statusLine); -1 while there is none. The caller holds the mutex guarding `logs`.
-inline long inputCounter(const std::vector<rosgraph_msgs::Log>& logs, const std::string& kind, const std::string& key) {
+/// ("... input: events in=120 lost=0 empty=3 ...; odom in=60 ...; camera_info refused=0", the
+/// format of NodeInput::statusLine); -1 while there is none. The caller holds the mutex guarding
+/// `logs`.
+inline long inputCounter(const std::vector<rosgraph_msgs::Log>& logs, const std::string& kind,
+                         const std::string& key) {
   for (auto l = logs.rbegin(); l != logs.rend(); ++l) {
     const size_t input = l->msg.find("input: ");
     if (input == std::string::npos) continue;
@@ -41,7 +43,8 @@ inline long inputCounter(const std::vector<rosgraph_msgs::Log>& logs, const std:
     const size_t part = line.find("; " + kind + " ");
     if (part == std::string::npos) return -1;
     const size_t end = line.find("; ", part + 2);
-    const std::string fields = line.substr(part, end == std::string::npos ? std::string::npos : end - part) + " ";
+    const std::string fields =
+        line.substr(part, end == std::string::npos ? std::string::npos : end - part) + " ";
     const size_t at = fields.find(" " + key + "=");
     if (at == std::string::npos) return -1;
     return std::stol(fields.substr(at + key.size() + 2));
@@ -51,7 +54,8 @@ inline long inputCounter(const std::vector<rosgraph_msgs::Log>& logs, const std:
 
 /// True if inputCounter(kind, key) exceeds `above` within timeout_s of wall time.
 inline bool waitForInputCounterAbove(std::mutex& mutex, const std::vector<rosgraph_msgs::Log>& logs,
-                                     const std::string& kind, const std::string& key, long above, double timeout_s) {
+                                     const std::string& kind, const std::string& key, long above,
+                                     double timeout_s) {
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
   do {
     {

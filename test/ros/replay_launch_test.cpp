@@ -4,9 +4,9 @@
 // generates into a temporary directory. The path must grow, the tf tree and the point clouds must
 // appear, and /vwe/odom must be as accurate against /gt/pose as the offline runner on the same bag
 // (rotation RMSE of the relative pose error over 1 s, the core evaluator) plus 20 %.
+#include <nav_msgs/Path.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
-#include <nav_msgs/Path.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 
@@ -41,9 +41,12 @@ struct Replay {
 
 void runOffline(Replay* r) {
   const std::string out = r->dir->path() + "/offline", log = r->dir->path() + "/offline.log";
-  const int rc = runToEnd({toolPath("vwe_vo_offline"), "--bag", r->bag.bag_path, "--out", out, "--no-map", "--quiet"},
-                          log, 300.0);
-  if (rc != 0) throw std::runtime_error("vwe_vo_offline exited with " + std::to_string(rc) + ":\n" + tailOf(log));
+  const int rc = runToEnd(
+      {toolPath("vwe_vo_offline"), "--bag", r->bag.bag_path, "--out", out, "--no-map", "--quiet"},
+      log, 300.0);
+  if (rc != 0)
+    throw std::runtime_error("vwe_vo_offline exited with " + std::to_string(rc) + ":\n" +
+                             tailOf(log));
   r->offline_backend = readTum(out + "/backend.tum");
   r->offline_frontend = readTum(out + "/frontend.tum");
   r->offline_odom = readTum(out + "/odom.tum");
@@ -62,22 +65,28 @@ void playBag(ros::NodeHandle& nh, Replay* replay) {
   TopicRecorder<sensor_msgs::PointCloud2> cloud(nh, topics::kMapCloud, 100);
   tf2_ros::Buffer tf(ros::Duration(60.0));
   tf2_ros::TransformListener listener(tf);
-  ChildProcess launch({"roslaunch", "vwe_vo", "replay.launch", "bag:=" + r.bag.bag_path, "rviz:=false", "rate:=1.0",
-                       "status_period_s:=2.0"},
+  ChildProcess launch({"roslaunch", "vwe_vo", "replay.launch", "bag:=" + r.bag.bag_path,
+                       "rviz:=false", "rate:=1.0", "status_period_s:=2.0"},
                       r.dir->path() + "/roslaunch.log");
   // Until the bag has played to its end (its last /gt/pose), then until the nodes are done.
   const int64_t gt_end = r.bag.gt.back().t_ns;
   const bool played = waitUntil(
       [&] {
         const auto g = gt.all();
-        return !launch.running() || (!g.empty() && toNs(g.back().msg.header.stamp) >= gt_end - secToNs(0.01));
+        return !launch.running() ||
+               (!g.empty() && toNs(g.back().msg.header.stamp) >= gt_end - secToNs(0.01));
       },
       kBagDurationS + 90.0);
   if (played) {  // the nodes finish: odometry up to the last window, the mapper's last keyframe
     const int64_t end_ns = gt_end - secToNs(0.7);
-    waitUntil([&] { const auto o = odoms.all(); return !o.empty() && toNs(o.back().msg.header.stamp) > end_ns; },
-              30.0);
-    waitUntilQuiet([&] { return odoms.size() + points.size() + cloud.size() + paths.size(); }, 4.0, 30.0);
+    waitUntil(
+        [&] {
+          const auto o = odoms.all();
+          return !o.empty() && toNs(o.back().msg.header.stamp) > end_ns;
+        },
+        30.0);
+    waitUntilQuiet([&] { return odoms.size() + points.size() + cloud.size() + paths.size(); }, 4.0,
+                   30.0);
   }
   r.odoms = odoms.messages();
   r.gt = gt.messages();
@@ -140,7 +149,8 @@ TEST_F(ReplayLaunch, PathGrows) {
   for (size_t i = 1; i < paths.size(); ++i) {
     EXPECT_EQ(paths[i].header.frame_id, "odom");
     EXPECT_GT(pathLengthM(paths[i]), pathLengthM(paths[i - 1])) << "path " << i;
-    EXPECT_GT(paths[i].poses.back().header.stamp, paths[i - 1].poses.back().header.stamp) << "path " << i;
+    EXPECT_GT(paths[i].poses.back().header.stamp, paths[i - 1].poses.back().header.stamp)
+        << "path " << i;
   }
   // The last one covers most of the 6 s at the front-end's nominal 0.3 m/s (the monocular scale).
   EXPECT_GT(pathLengthM(paths.back()), 0.3 * 0.6 * kBagDurationS);
@@ -152,7 +162,8 @@ TEST_F(ReplayLaunch, TfTreeIsValid) {
   EXPECT_TRUE(replay->base_ok) << replay->tf_error;
   EXPECT_TRUE(replay->camera_ok) << replay->tf_error;
   // The newest odometry is near the end of the bag (within two windows).
-  EXPECT_GT(toNs(replay->last_odom_stamp), replay->bag.gt.back().t_ns - secToNs(0.7)) << replay->launch_log;
+  EXPECT_GT(toNs(replay->last_odom_stamp), replay->bag.gt.back().t_ns - secToNs(0.7))
+      << replay->launch_log;
 }
 
 TEST_F(ReplayLaunch, PointCloudsInOdomWithFinitePoints) {
@@ -162,7 +173,8 @@ TEST_F(ReplayLaunch, PointCloudsInOdomWithFinitePoints) {
   for (const sensor_msgs::PointCloud2& c : clouds) {
     EXPECT_EQ(c.header.frame_id, "odom");
     size_t n = 0;
-    for (sensor_msgs::PointCloud2ConstIterator<float> x(c, "x"), y(c, "y"), z(c, "z"); x != x.end(); ++x, ++y, ++z) {
+    for (sensor_msgs::PointCloud2ConstIterator<float> x(c, "x"), y(c, "y"), z(c, "z"); x != x.end();
+         ++x, ++y, ++z) {
       ASSERT_TRUE(std::isfinite(*x) && std::isfinite(*y) && std::isfinite(*z));
       // Inside the simulated room around the circle (a few metres), not at infinity.
       EXPECT_LT(std::abs(*x) + std::abs(*y) + std::abs(*z), 30.0f);
@@ -196,9 +208,10 @@ TEST_F(ReplayLaunch, OdometryAndPathAsAccurateAsTheOfflineRunner) {
   RecordProperty("offline_frontend_rot_rmse_deg_s", std::to_string(offline_fe));
   RecordProperty("offline_backend_rot_rmse_deg_s", std::to_string(offline_be));
   RecordProperty("offline_odom_rot_rmse_deg_s", std::to_string(offline_odom));
-  std::printf("rotation RMSE over 1 s: live /vwe/odom %.3f vs offline odom %.3f (front-end %.3f) deg/s; "
-              "live /vwe/path %.3f vs offline back-end %.3f deg/s\n",
-              odom_rmse, offline_odom, offline_fe, path_rmse, offline_be);
+  std::printf(
+      "rotation RMSE over 1 s: live /vwe/odom %.3f vs offline odom %.3f (front-end %.3f) deg/s; "
+      "live /vwe/path %.3f vs offline back-end %.3f deg/s\n",
+      odom_rmse, offline_odom, offline_fe, path_rmse, offline_be);
   // The references themselves track the 25 deg/s circle (README: 0.27-0.28 deg/s on indoor_circle).
   EXPECT_LT(offline_fe, 1.5);
   EXPECT_LT(offline_be, 1.5);

@@ -7,7 +7,8 @@ namespace vwe_vo {
 namespace {
 
 TEST(Conversions, TimeRoundTripIsExact) {
-  for (int64_t t : {int64_t(0), int64_t(1), int64_t(999999999), int64_t(1000000000), int64_t(1700000000123456789)}) {
+  for (int64_t t : {int64_t(0), int64_t(1), int64_t(999999999), int64_t(1000000000),
+                    int64_t(1700000000123456789)}) {
     EXPECT_EQ(toNs(toRosTime(t)), t);
   }
   EXPECT_EQ(toRosTime(1500000001).sec, 1u);
@@ -117,14 +118,17 @@ TEST(Conversions, GyroInTheCameraFrameGivesTheYawRateOfBaseLink) {
   EXPECT_EQ(g.t_ns, 5000000007);
   EXPECT_NEAR(g.yaw_rate_rad_s, 0.4, 1e-12);
   // Pitched down by 10 deg about the camera's x: the yaw rate is the projection on base z.
-  const Pose3 T_pitched = makePose(Quat(R_base_cam * Eigen::AngleAxisd(0.17453292519943295, Vec3::UnitX())), Vec3::Zero());
+  const Pose3 T_pitched = makePose(
+      Quat(R_base_cam * Eigen::AngleAxisd(0.17453292519943295, Vec3::UnitX())), Vec3::Zero());
   msg.angular_velocity.x = 0.0;
   msg.angular_velocity.z = 0.0;
-  EXPECT_NEAR(gyroFromMsg(msg, T_pitched).yaw_rate_rad_s, 0.4 * std::cos(0.17453292519943295), 1e-12);
+  EXPECT_NEAR(gyroFromMsg(msg, T_pitched).yaw_rate_rad_s, 0.4 * std::cos(0.17453292519943295),
+              1e-12);
 }
 
 TEST(Conversions, PoseRoundTrip) {
-  const Pose3 T = makePose(Quat(Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized())), Vec3(1, -2, 3));
+  const Pose3 T =
+      makePose(Quat(Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized())), Vec3(1, -2, 3));
   const Pose3 B = poseFromMsg(poseToMsg(T));
   EXPECT_LT((B.matrix() - T.matrix()).norm(), 1e-12);
   const geometry_msgs::Transform tf = transformToMsg(T);

@@ -27,11 +27,12 @@ TEST(Messages, AckermannArcStatusConstantsAreTheCoreEnum) {
   EXPECT_EQ(vwe_vo::AckermannArc::STANDSTILL, uint8_t(vwe_vo::ArcStatus::kStandstill));
   EXPECT_EQ(vwe_vo::AckermannArc::LOST, uint8_t(vwe_vo::ArcStatus::kLost));
   EXPECT_EQ(vwe_vo::AckermannArc::LOW_EVENTS, uint8_t(vwe_vo::ArcStatus::kLowEvents));
-  for (vwe_vo::ArcStatus status : {vwe_vo::ArcStatus::kOk, vwe_vo::ArcStatus::kStandstill, vwe_vo::ArcStatus::kLost,
-                                   vwe_vo::ArcStatus::kLowEvents}) {
+  for (vwe_vo::ArcStatus status : {vwe_vo::ArcStatus::kOk, vwe_vo::ArcStatus::kStandstill,
+                                   vwe_vo::ArcStatus::kLost, vwe_vo::ArcStatus::kLowEvents}) {
     vwe_vo::ArcEstimate arc;
     arc.status = status;
-    EXPECT_EQ(vwe_vo::arcFromMsg(vwe_vo::arcToMsg(arc, "base_link")).status, status) << toString(status);
+    EXPECT_EQ(vwe_vo::arcFromMsg(vwe_vo::arcToMsg(arc, "base_link")).status, status)
+        << toString(status);
   }
 }
 

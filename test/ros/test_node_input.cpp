@@ -33,7 +33,8 @@ class NodeInputTest : public testing::Test {
   /// A packet of n events inside a width x height sensor, header.seq = seq.
   static EventArray packet(size_t n, uint32_t seq, uint32_t width = 346, uint32_t height = 260) {
     EventVector ev;
-    for (size_t i = 0; i < n; ++i) ev.push_back({int64_t(1000 + i), uint16_t(i % width), uint16_t(i % height), 1});
+    for (size_t i = 0; i < n; ++i)
+      ev.push_back({int64_t(1000 + i), uint16_t(i % width), uint16_t(i % height), 1});
     EventArray msg = eventsToMsg(ev, 0, ev.size(), int(width), int(height), "davis");
     msg.header.seq = seq;
     return msg;
@@ -92,9 +93,9 @@ TEST_F(NodeInputTest, EventPacketsAreCheckedConvertedAndCounted) {
   NodeInput<Item> input("test_node");
   input.setCalibration(calibration());
   EXPECT_TRUE(pushPacket(input, packet(5, 1)));
-  EXPECT_FALSE(pushPacket(input, packet(0, 2)));             // empty
-  EXPECT_FALSE(pushPacket(input, packet(5, 3, 240, 180)));   // another size than the calibration
-  EventArray outside = packet(4, 7);                          // seq 4..6 never arrived
+  EXPECT_FALSE(pushPacket(input, packet(0, 2)));            // empty
+  EXPECT_FALSE(pushPacket(input, packet(5, 3, 240, 180)));  // another size than the calibration
+  EventArray outside = packet(4, 7);                        // seq 4..6 never arrived
   outside.events[1].x = 400;
   outside.events[2].y = 300;
   EXPECT_TRUE(pushPacket(input, outside));
@@ -159,7 +160,8 @@ TEST_F(NodeInputTest, DropOldestKeepsTheNewestInArrivalOrder) {
   pushOther(input, InputKind::kTrajectory, 50);
   pushOther(input, InputKind::kFrame, 2);
   EXPECT_EQ(pushOther(input, InputKind::kFrame, 3), NodeInputBase::Push::kQueuedDroppedOldest);
-  EXPECT_EQ(pushOther(input, InputKind::kTrajectory, 51), NodeInputBase::Push::kQueuedDroppedOldest);
+  EXPECT_EQ(pushOther(input, InputKind::kTrajectory, 51),
+            NodeInputBase::Push::kQueuedDroppedOldest);
   const std::deque<Item> batch = takeAll(input);
   std::vector<int> ids;
   for (const Item& i : batch) ids.push_back(i.id);
@@ -177,9 +179,10 @@ TEST_F(NodeInputTest, StatusLineHasTheCountersOfEveryKindInUse) {
   input.setCalibration(calibration());
   pushPacket(input, packet(0, 2));
   input.countRefused(InputKind::kArc);
-  EXPECT_EQ(input.statusLine(),
-            "events in=2 lost=0 empty=1 wrong_size=0 outside=0 refused=1 before_calibration=1 dropped=0; "
-            "arc in=1 refused=1 before_calibration=0 dropped=0; camera_info refused=0");
+  EXPECT_EQ(
+      input.statusLine(),
+      "events in=2 lost=0 empty=1 wrong_size=0 outside=0 refused=1 before_calibration=1 dropped=0; "
+      "arc in=1 refused=1 before_calibration=0 dropped=0; camera_info refused=0");
 }
 
 TEST_F(NodeInputTest, StopEndsTheWaits) {

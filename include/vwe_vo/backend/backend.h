@@ -11,14 +11,14 @@
 #include <utility>
 #include <vector>
 
+#include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sensor/events.h"
 #include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/trajectory/bspline.h"
 #include "vwe_vo/trajectory/dead_reckoning.h"
-#include "vwe_vo/sensor/camera.h"
-#include "vwe_vo/sensor/events.h"
-#include "vwe_vo/frontend/frontend.h"
-#include "vwe_vo/vwe/projective_volume.h"
 #include "vwe_vo/trajectory/stamped_trajectory.h"
+#include "vwe_vo/vwe/projective_volume.h"
 #include "vwe_vo/vwe/vwe_objective.h"
 
 namespace vwe_vo {
@@ -27,31 +27,37 @@ struct BackendOptions {
   VolumeOptions volume = defaultVolume();  // the VWE grid of every back-end volume
   static VolumeOptions defaultVolume() {
     VolumeOptions v;
-    v.grid_scale = 1.0;  // full resolution: at half resolution the refinement made the rotation worse
-    v.z_min_m = 0.8;     // as the front-end: nearer planes collect floor rays at wrong yaw rates
+    v.grid_scale =
+        1.0;          // full resolution: at half resolution the refinement made the rotation worse
+    v.z_min_m = 0.8;  // as the front-end: nearer planes collect floor rays at wrong yaw rates
     return v;
   }
-  int degree = 3;                        // spline degree p (1..5)
-  double knot_spacing_s = 0.2;           // uniform knot span [s]
-  double tau1_s = 0.2;                   // spacing of the volume reference times [s]
-  double tau2_s = 1.0;                   // events span of one volume [s], > tau1_s (parallax over 1 s is what beats the front-end's 0.3 s)
+  int degree = 3;               // spline degree p (1..5)
+  double knot_spacing_s = 0.2;  // uniform knot span [s]
+  double tau1_s = 0.2;          // spacing of the volume reference times [s]
+  double tau2_s = 1.0;  // events span of one volume [s], > tau1_s (parallax over 1 s is what beats
+                        // the front-end's 0.3 s)
   double window_s = 1.6;                 // length of the optimised sliding window [s]
   double update_interval_s = 1.0;        // new arcs that trigger a refinement [s]
   size_t max_events_per_volume = 10000;  // events voted per volume (uniform subsampling)
   size_t min_events_per_volume = 300;    // fewer events: the volume is skipped [events]
   int max_iterations = 20;               // LBFGS iterations per refinement
-  double function_tolerance = 1e-5;      // LBFGS stops when the relative cost change is below this [1]
-  int max_line_search_steps = 4;         // evaluations a line search may take (Ceres' default is 20)
-  double step_scale_per_span = 0.25;     // solver unit of a control-point coordinate, as a fraction of the distance driven per knot span (at least 1 mm) [1]
+  double function_tolerance = 1e-5;   // LBFGS stops when the relative cost change is below this [1]
+  int max_line_search_steps = 4;      // evaluations a line search may take (Ceres' default is 20)
+  double step_scale_per_span = 0.25;  // solver unit of a control-point coordinate, as a fraction of
+                                      // the distance driven per knot span (at least 1 mm) [1]
   double init_sample_interval_s = 0.05;  // spacing of the dead-reckoned poses fitted [s]
   double smoothness_weight = 0.05;       // second-difference prior of the initial fit [1]
-  bool interpolate_arc_rates = true;     // dead reckoning with rates linear between the arcs' middles (false: steps)
-  double speed_prior_weight = 10.0;      // relative-speed prior vs the normalised VWE (0: off) [1]
-  double deformation_weight = 1.0;       // third-difference prior on the control-point moves (0: off) [1]
-  double arc_rate_prior_weight = 1e-2;   // the arcs' mean yaw rates as measurements, per (deg/s)^2 vs the normalised VWE (0: off) [1]
-  double max_backwards_jump_s = 0.05;    // arcs older than newest - this reset the back-end [s]
-  double output_rate_hz = 20.0;          // rate of the sampled trajectory (backend.tum) [Hz]
-  uint64_t seed = 1;                     // subsampling seed
+  bool interpolate_arc_rates =
+      true;  // dead reckoning with rates linear between the arcs' middles (false: steps)
+  double speed_prior_weight = 10.0;  // relative-speed prior vs the normalised VWE (0: off) [1]
+  double deformation_weight =
+      1.0;  // third-difference prior on the control-point moves (0: off) [1]
+  double arc_rate_prior_weight = 1e-2;  // the arcs' mean yaw rates as measurements, per (deg/s)^2
+                                        // vs the normalised VWE (0: off) [1]
+  double max_backwards_jump_s = 0.05;   // arcs older than newest - this reset the back-end [s]
+  double output_rate_hz = 20.0;         // rate of the sampled trajectory (backend.tum) [Hz]
+  uint64_t seed = 1;                    // subsampling seed
   /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
   void validate(const std::string& section = "backend") const;
 };
@@ -61,19 +67,20 @@ struct BackendStats {
   size_t events_outside = 0;       // outside the sensor: dropped
   size_t events_out_of_order = 0;  // older than the newest buffered event: dropped
   size_t arcs_in = 0;
-  size_t arcs_held = 0;        // LOST / LOW_EVENTS / non-finite arcs dead-reckoned at the last measured rates
+  size_t arcs_held =
+      0;  // LOST / LOW_EVENTS / non-finite arcs dead-reckoned at the last measured rates
   size_t updates = 0;          // refinements run
   size_t volumes = 0;          // volumes optimised (summed over refinements)
   size_t volumes_skipped = 0;  // in a standstill or with too few events
   size_t evaluations = 0;      // objective + gradient evaluations
   size_t rejected = 0;         // refinements whose result was worse than the start (reverted)
   size_t resets = 0;
-  size_t solver_iterations = 0;     // LBFGS iterations (summed over refinements)
-  size_t max_iteration_stops = 0;   // refinements that ended at max_iterations (not converged)
-  size_t accepted = 0;              // refinements whose result was kept
-  double gain_sum = 0.0;            // sum over accepted refinements of f_final / f_start - 1
-  double solver_s = 0.0;   // wall time in the solver [s]
-  double last_gain = 0.0;  // objective ratio final / initial of the last refinement
+  size_t solver_iterations = 0;    // LBFGS iterations (summed over refinements)
+  size_t max_iteration_stops = 0;  // refinements that ended at max_iterations (not converged)
+  size_t accepted = 0;             // refinements whose result was kept
+  double gain_sum = 0.0;           // sum over accepted refinements of f_final / f_start - 1
+  double solver_s = 0.0;           // wall time in the solver [s]
+  double last_gain = 0.0;          // objective ratio final / initial of the last refinement
 };
 
 /// One volume of the multi-volume objective: reference time and its (subsampled) events.
@@ -248,7 +255,8 @@ class Backend {
   /// Pose of base_link in odom at t_ns with its speed [m/s] and yaw rate [rad/s] (may be null):
   /// on the refined spline up to processedUntil(), beyond it (up to the newest arc) the arcs'
   /// dead reckoning (each arc's rates over its own window) anchored on the spline at
-  /// processedUntil(); before the first refinement that dead reckoning alone. False if t_ns is outside [first arc, newest arc].
+  /// processedUntil(); before the first refinement that dead reckoning alone. False if t_ns is
+  /// outside [first arc, newest arc].
   bool poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const;
   /// The front-end's dead reckoning the spline is fit to beyond its refined part (rates ramping
   /// between the arcs' middles with interpolate_arc_rates, else steps), in the back-end's first

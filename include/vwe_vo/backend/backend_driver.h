@@ -23,10 +23,10 @@ struct BackendDriverOptions {
 
 struct BackendDriverStats {
   size_t arcs_in = 0;
-  size_t arcs_stale = 0;          // not newer than the newest arc (and no jump back): ignored
-  size_t arcs_lost = 0;           // LOST / LOW_EVENTS / non-finite: the back-end holds the last rates
-  size_t gaps = 0;                // resets after a gap in the events or the arcs
-  size_t loops = 0;               // resets after the time jumped back (a looped bag)
+  size_t arcs_stale = 0;  // not newer than the newest arc (and no jump back): ignored
+  size_t arcs_lost = 0;   // LOST / LOW_EVENTS / non-finite: the back-end holds the last rates
+  size_t gaps = 0;        // resets after a gap in the events or the arcs
+  size_t loops = 0;       // resets after the time jumped back (a looped bag)
   size_t refinements = 0;
   size_t refinements_merged = 0;  // update intervals folded into a later refinement
 };
@@ -84,9 +84,11 @@ class BackendDriver {
 
 /// How the front-end follows the back-end (frontend_node's ~follow_backend; vwe_vo_offline).
 struct FollowOptions {
-  bool follow_backend = true;   // re-anchor on each refined spline and, without odometry, take its speed
-  double min_speed_mps = 0.05;  // the spline's speed is taken only above this (not in a standstill) [m/s]
-  void validate() const;        // throws std::invalid_argument naming the field
+  bool follow_backend =
+      true;  // re-anchor on each refined spline and, without odometry, take its speed
+  double min_speed_mps =
+      0.05;               // the spline's speed is taken only above this (not in a standstill) [m/s]
+  void validate() const;  // throws std::invalid_argument naming the field
 };
 
 /// The front-end following the back-end: on each refined spline it re-anchors the front-end's

@@ -12,24 +12,23 @@
 // (grid bracketing + safeguarded Newton), exact for any offset. For comparison, the closed form
 // of the on-axle case: With a = R_base_cam f_r and b = R_base_cam f_t (vehicle axes)
 // and the camera on the axle, e = s_h (a_x b_z + a_z b_x) + c_h (a_z b_y - a_y b_z) with
-// s_h = sin(theta/2), c_h = cos(theta/2), hence theta = 2 atan((a_y b_z - a_z b_y) / (a_x b_z + a_z b_x)).
-// (with our 0.10 m offset it is off by up to ~1e-2 rad per track at turtlebot speeds, see the
-// tests). RANSAC tries the per-track thetas, scores them by MSAC on the Sampson distance in
+// s_h = sin(theta/2), c_h = cos(theta/2), hence theta = 2 atan((a_y b_z - a_z b_y) / (a_x b_z + a_z
+// b_x)). (with our 0.10 m offset it is off by up to ~1e-2 rad per track at turtlebot speeds, see
+// the tests). RANSAC tries the per-track thetas, scores them by MSAC on the Sampson distance in
 // pixels and refines theta over the inliers (Gauss-Newton on their Sampson residuals, last round
 // trimmed at 3 MAD sigmas).
 #pragma once
 
 #include <cstdint>
 #include <deque>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
-#include <opencv2/core.hpp>
-
+#include "vwe_vo/common/math.h"
+#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/trajectory/dead_reckoning.h"
-#include "vwe_vo/sensor/camera.h"
-#include "vwe_vo/common/math.h"
 #include "vwe_vo/trajectory/stamped_trajectory.h"
 
 namespace vwe_vo {
@@ -49,13 +48,13 @@ struct FrameBaselineOptions {
   int max_hypotheses = 200;          // RANSAC hypotheses (per-track thetas) tried at most [-]
   double omega_max_rad_s = 3.0;      // |theta| / dt beyond this: hypothesis refused [rad/s]
   double nominal_speed_mps = 0.4;    // speed when no odometry is given [m/s]
-  double standstill_speed_mps = 0.02;  // odometry speed below this: STANDSTILL [m/s]
-  double odom_max_age_s = 0.5;       // odometry older than this is ignored [s]
-  double min_contrast_dn = 3.0;      // image std dev below this (black, saturated): LOST [DN]
+  double standstill_speed_mps = 0.02;   // odometry speed below this: STANDSTILL [m/s]
+  double odom_max_age_s = 0.5;          // odometry older than this is ignored [s]
+  double min_contrast_dn = 3.0;         // image std dev below this (black, saturated): LOST [DN]
   double max_saturated_fraction = 0.5;  // more pixels at 255: LOST [-]
-  double min_median_flow_px = 0.02;  // median track motion below this while moving: LOST [px]
-  double max_frame_gap_s = 0.5;      // a longer gap between frames restarts tracking [s]
-  uint64_t seed = 1;                 // RANSAC sampling seed [-]
+  double min_median_flow_px = 0.02;     // median track motion below this while moving: LOST [px]
+  double max_frame_gap_s = 0.5;         // a longer gap between frames restarts tracking [s]
+  uint64_t seed = 1;                    // RANSAC sampling seed [-]
   /// Throws std::invalid_argument naming the first bad field by its YAML key, section + "." + key.
   void validate(const std::string& section = "baseline") const;
 };
@@ -87,8 +86,8 @@ struct FrameBaselineStats {
 /// near-degenerate tracks whose constraint hardly depends on theta); all are returned, RANSAC
 /// sorts them out. Roots: sign changes on a grid of <= 0.005 rad, polished by safeguarded
 /// Newton on the analytic derivative (ArcJacobian). Returns the number of roots.
-int solveTheta1Point(const Vec3& f_r, const Vec3& f_t, double s_m, const Pose3& T_base_cam, double theta_max,
-                     std::vector<double>* thetas);
+int solveTheta1Point(const Vec3& f_r, const Vec3& f_t, double s_m, const Pose3& T_base_cam,
+                     double theta_max, std::vector<double>* thetas);
 /// The on-axle closed form theta = 2 atan((a_y b_z - a_z b_y) / (a_x b_z + a_z b_x)).
 double theta1PointOnAxle(const Vec3& f_r, const Vec3& f_t, const Pose3& T_base_cam);
 /// Sampson distance [in units of normalised image coordinates] of a correspondence under
@@ -103,14 +102,16 @@ struct ThetaRansacResult {
 /// RANSAC over per-correspondence thetas (all of them if there are at most max_hypotheses),
 /// inliers by Sampson distance below threshold_norm (normalised units), refinement over the
 /// inliers. ok is false if there are fewer than min_inliers.
-ThetaRansacResult estimateThetaRansac(const std::vector<Vec3>& f_r, const std::vector<Vec3>& f_t, double s_m,
-                                      const Pose3& T_base_cam, double theta_max, double threshold_norm,
-                                      int max_hypotheses, int min_inliers, uint64_t seed);
+ThetaRansacResult estimateThetaRansac(const std::vector<Vec3>& f_r, const std::vector<Vec3>& f_t,
+                                      double s_m, const Pose3& T_base_cam, double theta_max,
+                                      double threshold_norm, int max_hypotheses, int min_inliers,
+                                      uint64_t seed);
 
 /// Frame-to-frame visual odometry over mono8 frames of the calibrated size.
 class FrameBaseline {
  public:
-  FrameBaseline(const FrameBaselineOptions& options, const CameraModel& camera, const Pose3& T_base_cam);
+  FrameBaseline(const FrameBaselineOptions& options, const CameraModel& camera,
+                const Pose3& T_base_cam);
 
   /// Processes a frame (stamps increasing). Throws std::invalid_argument for an image that is
   /// not 8-bit single channel or not of the calibrated size, or a stamp not after the previous.

@@ -21,10 +21,16 @@ constexpr double kRadPerDeg = kPi / 180.0;
 constexpr int64_t kNsPerSec = 1000000000LL;
 
 /// Time: the core keeps int64 nanoseconds; seconds (double) only for differences.
-inline double nsToSec(int64_t t_ns) { return static_cast<double>(t_ns) * 1e-9; }
-inline int64_t secToNs(double t_s) { return static_cast<int64_t>(t_s * 1e9 + (t_s >= 0 ? 0.5 : -0.5)); }
+inline double nsToSec(int64_t t_ns) {
+  return static_cast<double>(t_ns) * 1e-9;
+}
+inline int64_t secToNs(double t_s) {
+  return static_cast<int64_t>(t_s * 1e9 + (t_s >= 0 ? 0.5 : -0.5));
+}
 /// (t_ns - ref_ns) in seconds, exact for differences up to ~100 days.
-inline double dtSec(int64_t t_ns, int64_t ref_ns) { return nsToSec(t_ns - ref_ns); }
+inline double dtSec(int64_t t_ns, int64_t ref_ns) {
+  return nsToSec(t_ns - ref_ns);
+}
 
 /// Rotation about +z by yaw [rad] (counter-clockwise seen from above).
 Mat3 rotZ(double yaw);

@@ -114,7 +114,8 @@ struct WindowYawRateResult {
   double rmse_deg_s = 0.0, median_abs_deg_s = 0.0, max_abs_deg_s = 0.0;
   std::vector<double> err_deg_s;  // per evaluated window
 };
-WindowYawRateResult evaluateWindowYawRates(const Trajectory3& gt, const std::vector<WindowYawRate>& windows);
+WindowYawRateResult evaluateWindowYawRates(const Trajectory3& gt,
+                                           const std::vector<WindowYawRate>& windows);
 /// The ground truth's mean yaw rate over [t0, t1], (yaw(t1) - yaw(t0)) / (t1 - t0) [rad/s];
 /// false if t1 <= t0 or the truth does not cover both ends.
 bool meanYawRate(const Trajectory3& gt, int64_t t0_ns, int64_t t1_ns, double* rate_rad_s);

@@ -10,13 +10,13 @@
 #include <string>
 #include <vector>
 
-#include "vwe_vo/trajectory/ackermann_arc.h"
-#include "vwe_vo/trajectory/dead_reckoning.h"
+#include "vwe_vo/frontend/one_sided.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
-#include "vwe_vo/frontend/one_sided.h"
-#include "vwe_vo/vwe/projective_volume.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/trajectory/dead_reckoning.h"
 #include "vwe_vo/trajectory/stamped_trajectory.h"
+#include "vwe_vo/vwe/projective_volume.h"
 #include "vwe_vo/vwe/vwe_objective.h"
 
 namespace vwe_vo {
@@ -36,36 +36,38 @@ struct FrontendOptions {
     v.z_min_m = 0.8;
     return v;
   }
-  bool window_by_count = false;            // windows of window_events events instead of a duration
-  double window_duration_s = 0.3;          // window length when by duration [s]
-  double window_stride_s = 0.0;            // start-to-start spacing of windows by duration [s]; 0: no overlap
-  size_t window_events = 60000;            // window size when by count [events]
-  size_t max_events_per_volume = 8000;     // events voted per window (uniform subsampling)
-  int subsample_time_slices = 10;          // equal budget per time slice of the window (1: by count)
-  double nominal_speed_mps = 0.3;          // v when no odometry is given [m/s]
-  double omega_max_rad_s = 1.2;            // |omega| bound of the full scan [rad/s]
-  double scan_half_range_rad_s = 0.15;     // scan around the previous omega [rad/s]
-  double scan_step_rad_s = 0.03;           // coarse scan step [rad/s]
-  double full_scan_step_rad_s = 0.09;      // step of a full-range scan, refined at scan_step_rad_s [rad/s]
-  int full_scan_candidates = 2;            // maxima of a full-range scan refined at scan_step_rad_s
-  size_t full_scan_max_events = 2000;      // events the coarse grid of a full-range scan votes (0: all)
-  double refine_tolerance_rad_s = 3e-4;    // 1-D refinement stops at this bracket width [rad/s]
-  double standstill_event_rate_hz = 30000; // below this event rate the vehicle is standing [ev/s]
-  double standstill_speed_mps = 0.03;      // odometry speed below this means standstill [m/s] (a window that barely moves has no parallax to fix omega)
-  size_t min_events = 1500;                // fewer events in a window: LOW_EVENTS, omega held
-  double min_confidence = 0.02;            // below: LOST, next window scans the full range
-  double rescan_confidence = 0.07;         // a flatter scan around the previous omega is repeated
-                                           // over the full range (a fast turn began)
-  double split_omega_change_rad_s = 0.05;  // a window whose omega differs more from the last is
-                                           // estimated again as two halves (0: never)
-  bool use_gyro_prior = false;             // centre and narrow the scan on the gyro yaw rate
+  bool window_by_count = false;    // windows of window_events events instead of a duration
+  double window_duration_s = 0.3;  // window length when by duration [s]
+  double window_stride_s = 0.0;  // start-to-start spacing of windows by duration [s]; 0: no overlap
+  size_t window_events = 60000;  // window size when by count [events]
+  size_t max_events_per_volume = 8000;  // events voted per window (uniform subsampling)
+  int subsample_time_slices = 10;       // equal budget per time slice of the window (1: by count)
+  double nominal_speed_mps = 0.3;       // v when no odometry is given [m/s]
+  double omega_max_rad_s = 1.2;         // |omega| bound of the full scan [rad/s]
+  double scan_half_range_rad_s = 0.15;  // scan around the previous omega [rad/s]
+  double scan_step_rad_s = 0.03;        // coarse scan step [rad/s]
+  double full_scan_step_rad_s =
+      0.09;                      // step of a full-range scan, refined at scan_step_rad_s [rad/s]
+  int full_scan_candidates = 2;  // maxima of a full-range scan refined at scan_step_rad_s
+  size_t full_scan_max_events = 2000;  // events the coarse grid of a full-range scan votes (0: all)
+  double refine_tolerance_rad_s = 3e-4;     // 1-D refinement stops at this bracket width [rad/s]
+  double standstill_event_rate_hz = 30000;  // below this event rate the vehicle is standing [ev/s]
+  double standstill_speed_mps = 0.03;  // odometry speed below this means standstill [m/s] (a window
+                                       // that barely moves has no parallax to fix omega)
+  size_t min_events = 1500;            // fewer events in a window: LOW_EVENTS, omega held
+  double min_confidence = 0.02;        // below: LOST, next window scans the full range
+  double rescan_confidence = 0.07;     // a flatter scan around the previous omega is repeated
+                                       // over the full range (a fast turn began)
+  double split_omega_change_rad_s = 0.05;    // a window whose omega differs more from the last is
+                                             // estimated again as two halves (0: never)
+  bool use_gyro_prior = false;               // centre and narrow the scan on the gyro yaw rate
   double gyro_prior_half_range_rad_s = 0.1;  // scan half range around the gyro yaw rate [rad/s]
-  double max_backwards_jump_s = 0.05;      // events older than newest - this trigger a reset [s]
+  double max_backwards_jump_s = 0.05;        // events older than newest - this trigger a reset [s]
   // Windows with structure on one side of the street only (one_sided.h; YAML one_sided_balance,
   // one_sided_z_min_m, one_sided_min_depth_m): the facade's depth is measured at the predicted
   // yaw rate, the gyro's if /dvs/imu is given, else the previous arc's.
   OneSidedOptions one_sided;
-  uint64_t seed = 1;                       // subsampling seed
+  uint64_t seed = 1;  // subsampling seed
   /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
   void validate(const std::string& section = "frontend") const;
 };
@@ -75,10 +77,10 @@ struct ArcEstimate {
   int64_t t_ref_ns = 0, t_start_ns = 0, t_end_ns = 0;
   double omega = 0.0, v = 0.0;
   double contrast = 0.0, confidence = 0.0;
-  uint32_t num_events = 0;      // events voted (after subsampling)
-  size_t window_events = 0;     // events in the window (before subsampling)
+  uint32_t num_events = 0;   // events voted (after subsampling)
+  size_t window_events = 0;  // events in the window (before subsampling)
   ArcStatus status = ArcStatus::kOk;
-  int evaluations = 0;          // objective evaluations spent
+  int evaluations = 0;  // objective evaluations spent
 };
 
 /// Dead reckoning through the arcs with omega and v ramping between the arcs' reference times
@@ -92,13 +94,15 @@ struct FrontendStats {
   size_t events_in = 0, events_outside = 0, events_out_of_order = 0;
   size_t windows = 0, windows_dropped = 0, windows_split = 0, resets = 0;
   size_t evaluations = 0;
-  size_t windows_one_sided = 0;       // estimated with the deeper planes (one_sided.z_min_m)
-  size_t windows_one_sided_near = 0;  // one-sided, but the structure nearer than one_sided.min_depth_m
+  size_t windows_one_sided = 0;  // estimated with the deeper planes (one_sided.z_min_m)
+  size_t windows_one_sided_near =
+      0;  // one-sided, but the structure nearer than one_sided.min_depth_m
 };
 
 /// How the front-end scans a window beyond its centre and half range.
 struct WindowScan {
-  bool deep_planes = false;  // the one-sided window's planes (one_sided.z_min_m); needs one_sided.balance > 0
+  bool deep_planes =
+      false;  // the one-sided window's planes (one_sided.z_min_m); needs one_sided.balance > 0
   // The range a flat or edge-bound scan is repeated over (the full range, but for the halves
   // of a split window), clipped to +-omega_max_rad_s.
   double rescan_lo_rad_s = -std::numeric_limits<double>::infinity();
@@ -127,14 +131,17 @@ class Frontend {
   size_t pendingWindows() const;
 
   /// Estimates one window of events about t_ref (exposed for tests and the objective plots).
-  ArcEstimate estimateWindow(const EventVector& window_events, int64_t t_ref_ns, double v, double omega_center,
-                             double half_range, const WindowScan& setup = WindowScan());
+  ArcEstimate estimateWindow(const EventVector& window_events, int64_t t_ref_ns, double v,
+                             double omega_center, double half_range,
+                             const WindowScan& setup = WindowScan());
   /// Contrast of the VWE of `events` for an arc (omega, v) about t_ref (with the one-sided
   /// window's planes if deep_planes).
-  double contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v, bool deep_planes = false);
+  double contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v,
+                  bool deep_planes = false);
   /// contrast() at every omega, one evaluation per thread (the same values as contrast()).
-  std::vector<double> contrasts(const EventVector& events, int64_t t_ref_ns, const std::vector<double>& omegas,
-                                double v, bool deep_planes = false);
+  std::vector<double> contrasts(const EventVector& events, int64_t t_ref_ns,
+                                const std::vector<double>& omegas, double v,
+                                bool deep_planes = false);
 
   /// Replaces the speed used when no odometry is given (e.g. the back-end's refined speed);
   /// throws std::invalid_argument unless positive and finite.
@@ -152,7 +159,8 @@ class Frontend {
   /// One span of events [t0, t1): standstill / low-events checks, subsampling, the one-sided
   /// check (which sets setup.deep_planes), estimation. *scanned tells whether the objective was
   /// optimised.
-  ArcEstimate estimateSpan(const EventVector& events, int64_t t0, int64_t t1, WindowScan setup, bool* scanned);
+  ArcEstimate estimateSpan(const EventVector& events, int64_t t0, int64_t t1, WindowScan setup,
+                           bool* scanned);
   /// Extends the dead reckoning over the part of time the span [t0, t1) stands for.
   void extendChain(int64_t t0, int64_t t1, double omega, double v);
   void moveToNextWindow(int64_t t0, int64_t t1);
@@ -163,8 +171,8 @@ class Frontend {
   const CameraModel& camera_;
   Pose3 T_base_cam_;
   ProjectiveVolume volume_;
-  VweObjective objective_;             // one evaluation on all threads (the refinement)
-  VweObjectivePool scan_objectives_;   // one evaluation per thread (the scans)
+  VweObjective objective_;            // one evaluation on all threads (the refinement)
+  VweObjectivePool scan_objectives_;  // one evaluation per thread (the scans)
   // The same with the deeper planes of one-sided windows (one_sided.balance > 0).
   OneSidedRule one_sided_;
   std::unique_ptr<VweObjectivePool> one_sided_scan_objectives_;

@@ -11,16 +11,17 @@
 
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
-#include "vwe_vo/vwe/projective_volume.h"
 #include "vwe_vo/trajectory/trajectory_model.h"
+#include "vwe_vo/vwe/projective_volume.h"
 #include "vwe_vo/vwe/vwe_objective.h"
 
 namespace vwe_vo {
 
 struct OneSidedOptions {
-  double balance = 0.0;      // events above the horizon this unbalanced (fewer / more) are one-sided; 0: off [1], in [0, 1)
-  double z_min_m = 10.0;     // nearest plane of the deeper planes [m], in (normal z_min, z_max)
-  double min_depth_m = 11.0; // that side's structure must measure this deep for them [m], > 0
+  double balance = 0.0;   // events above the horizon this unbalanced (fewer / more) are one-sided;
+                          // 0: off [1], in [0, 1)
+  double z_min_m = 10.0;  // nearest plane of the deeper planes [m], in (normal z_min, z_max)
+  double min_depth_m = 11.0;  // that side's structure must measure this deep for them [m], > 0
   /// Throws std::invalid_argument naming the field by its key, section + ".one_sided_" + field;
   /// `normal` is the normal planes.
   void validate(const VolumeOptions& normal, const std::string& section) const;
@@ -35,7 +36,8 @@ bool forwardPixel(const CameraModel& camera, const Pose3& T_base_cam, Vec2* pixe
 double sideBalance(const EventVector& events, const Vec2& pixel);
 /// Median, over the rays whose direction (u0, v0) lies above pixel.y() on the side of pixel.x()
 /// with more of them, of volume.peakDepth() (the volume holding the rays' votes); 0 if none.
-double oneSidedDepth(const ProjectiveVolume& volume, const std::vector<VolumeRay>& rays, const Vec2& pixel);
+double oneSidedDepth(const ProjectiveVolume& volume, const std::vector<VolumeRay>& rays,
+                     const Vec2& pixel);
 
 /// The decision for one volume of events.
 class OneSidedRule {
@@ -51,7 +53,8 @@ class OneSidedRule {
   /// rays meet when `normal` (an objective on the normal planes) votes `events` warped by
   /// `model`, a prediction of the motion. The VWE measures depth short, so min_depth_m is
   /// below the depth of the facades the deeper planes suit. Leaves the volume clear.
-  bool deepEnough(VweObjective& normal, const EventVector& events, const TrajectoryModel& model) const;
+  bool deepEnough(VweObjective& normal, const EventVector& events,
+                  const TrajectoryModel& model) const;
 
  private:
   OneSidedOptions options_;

@@ -8,11 +8,11 @@
 #include <vector>
 
 #include "vwe_vo/backend/backend.h"
-#include "vwe_vo/sensor/camera.h"
-#include "vwe_vo/mapping/emvs.h"
 #include "vwe_vo/baseline/frame_baseline.h"
-#include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/common/math.h"
+#include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/mapping/emvs.h"
+#include "vwe_vo/sensor/camera.h"
 
 namespace YAML {
 class Node;
@@ -41,10 +41,11 @@ struct PipelineConfig {
   BackendOptions backend;
   EmvsOptions mapping;
   GlobalMapOptions global_map;
-  FrameBaselineOptions baseline;      // the frame-based baseline (vwe_vo_offline --baseline, frame_baseline_node)
-  bool frontend_only = false;         // skip the back-end (set by the caller, not the file)
-  bool backend_thread = true;         // OfflinePipeline: the back-end on its own thread, fed in order
-                                      // (as backend_node beside frontend_node; same results)
+  FrameBaselineOptions
+      baseline;  // the frame-based baseline (vwe_vo_offline --baseline, frame_baseline_node)
+  bool frontend_only = false;  // skip the back-end (set by the caller, not the file)
+  bool backend_thread = true;  // OfflinePipeline: the back-end on its own thread, fed in order
+                               // (as backend_node beside frontend_node; same results)
   std::vector<std::string> warnings;  // unknown keys and the like
 };
 
@@ -58,6 +59,5 @@ PipelineConfig loadPipelineConfig(const std::string& path,
 /// and quaternion_xyzw), frontend, backend, mapping (with global_map) and baseline. The values
 /// in use, for logging; loading it again gives the same options.
 YAML::Node optionsToYaml(const PipelineConfig& cfg);
-
 
 }  // namespace vwe_vo

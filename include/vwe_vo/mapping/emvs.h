@@ -16,12 +16,12 @@
 #include <unordered_map>
 #include <vector>
 
+#include "vwe_vo/common/math.h"
+#include "vwe_vo/common/thread_pool.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
-#include "vwe_vo/common/math.h"
-#include "vwe_vo/vwe/projective_volume.h"
-#include "vwe_vo/common/thread_pool.h"
 #include "vwe_vo/trajectory/trajectory_model.h"
+#include "vwe_vo/vwe/projective_volume.h"
 
 namespace vwe_vo {
 
@@ -51,7 +51,7 @@ struct EmvsOptions {
   int64_t pose_slice_ns =
       500000;  // events within this span share one pose [ns]; 0 = a pose per event
   size_t max_pending_events =
-      8000000;            // events waiting for the trajectory; the oldest are dropped beyond
+      8000000;  // events waiting for the trajectory; the oldest are dropped beyond
   double max_event_rate_hz = 0.0;  // vote at most this many events per second (evenly over time,
                                    // the others counted as thinned); 0 = all
   /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.

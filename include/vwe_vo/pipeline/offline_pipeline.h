@@ -12,18 +12,18 @@
 #include <exception>
 #include <memory>
 #include <mutex>
-#include <thread>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "vwe_vo/backend/backend.h"
 #include "vwe_vo/backend/backend_driver.h"
-#include "vwe_vo/mapping/emvs.h"
 #include "vwe_vo/baseline/frame_baseline.h"
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/io/trajectory_io.h"
+#include "vwe_vo/mapping/emvs.h"
 
 namespace vwe_vo {
 
@@ -96,8 +96,8 @@ class OfflinePipeline {
   const GlobalMap* map() const { return map_.get(); }
 
   /// Writes frontend.tum, arcs.csv, report.json and, with the back-end, backend.tum, odom.tum
-  /// (odometryTrajectory()) and spline.json, with mapping map.ply (binary), with the baseline baseline.tum, into out_dir
-  /// (created if missing).
+  /// (odometryTrajectory()) and spline.json, with mapping map.ply (binary), with the baseline
+  /// baseline.tum, into out_dir (created if missing).
   void writeOutputs(const std::string& out_dir, const nlohmann::json& extra = {}) const;
   nlohmann::json report() const;
 
@@ -118,7 +118,7 @@ class OfflinePipeline {
   std::unique_ptr<BackendDriver> driver_;  // feeds backend_ (on the back-end's thread)
   Trajectory3 odometry_trajectory_;
   FrontendFollower follower_{FollowOptions{false, FollowOptions().min_speed_mps}};
-  std::shared_ptr<const BSpline> refined_;  // the newest refinement's spline (backend_mutex_)
+  std::shared_ptr<const BSpline> refined_;   // the newest refinement's spline (backend_mutex_)
   std::shared_ptr<const BSpline> followed_;  // the last one the front-end followed
   void followBackend();
   std::unique_ptr<FrameBaseline> baseline_;
@@ -149,7 +149,7 @@ class OfflinePipeline {
   size_t backend_queued_events_ = 0;
   bool backend_busy_ = false, backend_stop_ = false;
   std::exception_ptr backend_error_;
-  size_t backend_waits_ = 0;       // the front-end waited for a full queue
+  size_t backend_waits_ = 0;  // the front-end waited for a full queue
   double backend_wait_s_ = 0.0;
   // Mapping.
   void onKeyframes(const std::vector<EmvsKeyframe>& keyframes);

@@ -22,27 +22,27 @@
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/backend/backend.h"
 #include "vwe_vo/backend/backend_driver.h"
-#include "vwe_vo/sensor/camera.h"
-#include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/common/math.h"
+#include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/ros/node_input.h"
+#include "vwe_vo/sensor/camera.h"
 
 namespace vwe_vo {
 
 /// Everything the node reads from the parameter server, once, at start-up.
 struct BackendNodeOptions {
-  std::string config_path;        // ~config: pipeline YAML (back-end options, T_base_cam); empty:
-                                  // vwe_vo.yaml in defaultConfigDir()
-  std::string calibration_path;   // ~calibration: CameraInfo-style YAML; empty: /dvs/camera_info
+  std::string config_path;         // ~config: pipeline YAML (back-end options, T_base_cam); empty:
+                                   // vwe_vo.yaml in defaultConfigDir()
+  std::string calibration_path;    // ~calibration: CameraInfo-style YAML; empty: /dvs/camera_info
   int max_queue_events = 5000000;  // ~max_queue_events: bound of the queued event packets [events]
   int max_queue_messages = 4000;   // ~max_queue_messages: bound of the queued arcs [messages]
-  double odom_rate_hz = 20.0;     // ~odom_rate_hz: rate of /vwe/odom and the tf (data time) [Hz]
-  double max_gap_s = 2.0;         // ~max_gap_s: events or arcs this far apart reset [s]
-  int path_max_poses = 2000;      // ~path_max_poses: newest poses kept in /vwe/path
-  double status_period_s = 10.0;  // ~status_period_s: period of the one-line status [s]
-  bool publish_tf = true;         // ~publish_tf: broadcast odom -> base_link
-  int nice = 0;                   // ~nice: CPU priority (0..19; higher yields to the front-end)
-  void validate() const;          // throws std::invalid_argument naming the parameter
+  double odom_rate_hz = 20.0;      // ~odom_rate_hz: rate of /vwe/odom and the tf (data time) [Hz]
+  double max_gap_s = 2.0;          // ~max_gap_s: events or arcs this far apart reset [s]
+  int path_max_poses = 2000;       // ~path_max_poses: newest poses kept in /vwe/path
+  double status_period_s = 10.0;   // ~status_period_s: period of the one-line status [s]
+  bool publish_tf = true;          // ~publish_tf: broadcast odom -> base_link
+  int nice = 0;                    // ~nice: CPU priority (0..19; higher yields to the front-end)
+  void validate() const;           // throws std::invalid_argument naming the parameter
 };
 
 class BackendNode {
@@ -92,7 +92,8 @@ class BackendNode {
   // Owned by the worker thread.
   std::unique_ptr<CameraModel> camera_;
   std::unique_ptr<Backend> backend_;
-  std::unique_ptr<BackendDriver> driver_;  // feeds backend_: gaps, loops, stale arcs, odometry, refinements
+  std::unique_ptr<BackendDriver>
+      driver_;  // feeds backend_: gaps, loops, stale arcs, odometry, refinements
   size_t refinements_ = 0;
   size_t reported_out_of_order_ = 0;
   nav_msgs::Path path_;

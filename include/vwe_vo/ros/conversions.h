@@ -19,12 +19,12 @@
 #include "vwe_vo/AckermannArc.h"
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/SplineTrajectory.h"
-#include "vwe_vo/trajectory/bspline.h"
-#include "vwe_vo/sensor/camera.h"
-#include "vwe_vo/mapping/emvs.h"
-#include "vwe_vo/sensor/events.h"
-#include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/common/math.h"
+#include "vwe_vo/frontend/frontend.h"
+#include "vwe_vo/mapping/emvs.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sensor/events.h"
+#include "vwe_vo/trajectory/bspline.h"
 
 namespace vwe_vo {
 
@@ -39,7 +39,8 @@ struct EventConversionStats {
 
 /// Replaces *events with the events of msg; events outside msg.width x msg.height are dropped
 /// and counted (the caller also checks the size against the calibration).
-void eventsFromMsg(const EventArray& msg, EventVector* events, EventConversionStats* stats = nullptr);
+void eventsFromMsg(const EventArray& msg, EventVector* events,
+                   EventConversionStats* stats = nullptr);
 /// Fills msg.events from core events (header and size are the caller's).
 void eventsToMsg(const EventVector& events, EventArray* msg);
 /// A whole EventArray of events[begin, end) with times shifted by epoch_ns; header stamp =
@@ -50,7 +51,8 @@ EventArray eventsToMsg(const EventVector& events, size_t begin, size_t end, int 
 /// Calibration from CameraInfo (plumb_bob or an empty D). Throws std::invalid_argument naming
 /// the field if it is unusable (zero focal length, wrong distortion model, ...).
 CameraCalibration calibrationFromMsg(const sensor_msgs::CameraInfo& msg);
-sensor_msgs::CameraInfo calibrationToMsg(const CameraCalibration& calib, const std::string& frame_id = "");
+sensor_msgs::CameraInfo calibrationToMsg(const CameraCalibration& calib,
+                                         const std::string& frame_id = "");
 
 geometry_msgs::Pose poseToMsg(const Pose3& T);
 /// Throws std::invalid_argument for a zero quaternion.
@@ -92,7 +94,7 @@ BSpline splineFromMsg(const SplineTrajectory& msg);
 
 /// PointCloud2 of x y z float32 + intensity float32 (= MapPoint::confidence), unorganised
 /// (height 1), little-endian; non-finite points are left out.
-sensor_msgs::PointCloud2 cloudToMsg(const std::vector<MapPoint>& points, const std::string& frame_id,
-                                    int64_t stamp_ns);
+sensor_msgs::PointCloud2 cloudToMsg(const std::vector<MapPoint>& points,
+                                    const std::string& frame_id, int64_t stamp_ns);
 
 }  // namespace vwe_vo

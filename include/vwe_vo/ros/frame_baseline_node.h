@@ -12,15 +12,14 @@
 #include <cstdint>
 #include <deque>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <thread>
 
-#include <opencv2/core.hpp>
-
-#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/baseline/frame_baseline.h"
 #include "vwe_vo/common/math.h"
 #include "vwe_vo/ros/node_input.h"
+#include "vwe_vo/sensor/camera.h"
 
 namespace vwe_vo {
 
@@ -31,7 +30,8 @@ struct FrameBaselineNodeOptions {
   std::string calibration_path;   // ~calibration: CameraInfo-style YAML; empty: /dvs/camera_info
   double nominal_speed_mps = -1;  // ~nominal_speed: overrides the config when >= 0 [m/s]
   bool use_odom = false;          // ~use_odom: speed (and standstill) from /odom
-  int max_queue_frames = 10;      // ~max_queue_frames: bound of the queued frames (oldest dropped) [frames]
+  int max_queue_frames =
+      10;  // ~max_queue_frames: bound of the queued frames (oldest dropped) [frames]
   int max_queue_messages = 2000;  // ~max_queue_messages: bound of the queued odometry [messages]
   void validate() const;          // throws std::invalid_argument naming the parameter
 };

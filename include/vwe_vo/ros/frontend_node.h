@@ -19,31 +19,31 @@
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/SplineTrajectory.h"
 #include "vwe_vo/backend/backend_driver.h"
-#include "vwe_vo/trajectory/bspline.h"
-#include "vwe_vo/sensor/camera.h"
-#include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/common/math.h"
+#include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/ros/node_input.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/trajectory/bspline.h"
 #include "vwe_vo/vwe/vwe_image.h"
 
 namespace vwe_vo {
 
 /// Everything the node reads from the parameter server, once, at start-up.
 struct FrontendNodeOptions {
-  std::string config_path;        // ~config: pipeline YAML (front-end options, T_base_cam); empty:
-                                  // vwe_vo.yaml in defaultConfigDir()
-  std::string calibration_path;   // ~calibration: CameraInfo-style YAML; empty: /dvs/camera_info
-  double nominal_speed_mps = -1;  // ~nominal_speed: overrides the config when >= 0 [m/s]
-  bool use_odom = false;          // ~use_odom: speed (and standstill) from /odom
-  bool use_imu = false;           // ~use_imu: gyro yaw-rate prior from /dvs/imu
-  bool publish_static_tf = true;  // ~publish_static_tf: static tf base_link -> davis (T_base_cam)
+  std::string config_path;         // ~config: pipeline YAML (front-end options, T_base_cam); empty:
+                                   // vwe_vo.yaml in defaultConfigDir()
+  std::string calibration_path;    // ~calibration: CameraInfo-style YAML; empty: /dvs/camera_info
+  double nominal_speed_mps = -1;   // ~nominal_speed: overrides the config when >= 0 [m/s]
+  bool use_odom = false;           // ~use_odom: speed (and standstill) from /odom
+  bool use_imu = false;            // ~use_imu: gyro yaw-rate prior from /dvs/imu
+  bool publish_static_tf = true;   // ~publish_static_tf: static tf base_link -> davis (T_base_cam)
   int max_queue_events = 5000000;  // ~max_queue_events: bound of the queued event packets [events]
   int max_queue_messages = 2000;   // ~max_queue_messages: bound of each other input (IMU, odometry,
                                    // trajectories) [messages]
-  double max_latency_s = 1.0;     // ~max_latency_s: backlog beyond this drops whole windows [s]
-  double status_period_s = 10.0;  // ~status_period_s: period of the one-line status [s]
-  bool follow_backend = true;     // ~follow_backend: re-anchor on /vwe/trajectory, use its speed
-  void validate() const;          // throws std::invalid_argument naming the parameter
+  double max_latency_s = 1.0;      // ~max_latency_s: backlog beyond this drops whole windows [s]
+  double status_period_s = 10.0;   // ~status_period_s: period of the one-line status [s]
+  bool follow_backend = true;      // ~follow_backend: re-anchor on /vwe/trajectory, use its speed
+  void validate() const;           // throws std::invalid_argument naming the parameter
 };
 
 class FrontendNode {
@@ -100,7 +100,7 @@ class FrontendNode {
   std::unique_ptr<VweImageRenderer> renderer_;
   EventVector recent_events_;     // events kept for the VWE image (only while it is watched)
   int64_t newest_event_ns_ = -1;  // for the size of a backwards jump
-  FrontendFollower follower_;  // the anchor on the back-end's odom and the speed it gives
+  FrontendFollower follower_;     // the anchor on the back-end's odom and the speed it gives
   size_t windows_ok_ = 0, windows_standstill_ = 0, windows_lost_ = 0, windows_low_ = 0;
   size_t reported_out_of_order_ = 0;
   double busy_wall_s_ = 0.0,

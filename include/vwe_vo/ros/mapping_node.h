@@ -15,23 +15,24 @@
 
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/SplineTrajectory.h"
-#include "vwe_vo/trajectory/bspline.h"
-#include "vwe_vo/sensor/camera.h"
-#include "vwe_vo/mapping/emvs.h"
 #include "vwe_vo/common/math.h"
+#include "vwe_vo/mapping/emvs.h"
 #include "vwe_vo/ros/node_input.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/trajectory/bspline.h"
 
 namespace vwe_vo {
 
 /// Everything the node reads from the parameter server, once, at start-up.
 struct MappingNodeOptions {
-  std::string config_path;           // ~config: pipeline YAML (its mapping: section, T_base_cam);
-                                     // empty: vwe_vo.yaml in defaultConfigDir()
-  std::string calibration_path;      // ~calibration: CameraInfo-style YAML; empty: camera_info
-  double cloud_period_s = 2.0;       // ~cloud_period_s: minimum period of /vwe/map/cloud [s]
-  double trajectory_margin_s = 0.2;  // ~trajectory_margin_s: map events older than valid_to - this [s]
-  double keyframe_timeout_s = 3.0;   // ~keyframe_timeout_s: close the open keyframe after this
-                                     // long without events (end of a bag) [wall s]; 0: never
+  std::string config_path;       // ~config: pipeline YAML (its mapping: section, T_base_cam);
+                                 // empty: vwe_vo.yaml in defaultConfigDir()
+  std::string calibration_path;  // ~calibration: CameraInfo-style YAML; empty: camera_info
+  double cloud_period_s = 2.0;   // ~cloud_period_s: minimum period of /vwe/map/cloud [s]
+  double trajectory_margin_s =
+      0.2;  // ~trajectory_margin_s: map events older than valid_to - this [s]
+  double keyframe_timeout_s = 3.0;    // ~keyframe_timeout_s: close the open keyframe after this
+                                      // long without events (end of a bag) [wall s]; 0: never
   double max_backwards_jump_s = 0.5;  // ~max_backwards_jump_s: events further back reset [s]
   int max_queue_events = 10000000;    // ~max_queue_events: bound of the queued event packets
                                       // (room for bursts while keyframes close) [events]

@@ -1,9 +1,10 @@
 // The input of every node: the hand-over between its ROS callbacks and its worker thread. It opens
 // once the camera calibration is known (~calibration, or the first valid camera_info), checks and
-// converts event packets (size against the calibration, events outside the sensor, header.seq gaps),
-// bounds the queue per input kind (event packets by their total events, every other kind by its own
-// message count, so that event packets never starve the IMU, odometry or trajectories), counts
-// everything refused or dropped per kind, and formats those counters for the node's status line.
+// converts event packets (size against the calibration, events outside the sensor, header.seq
+// gaps), bounds the queue per input kind (event packets by their total events, every other kind by
+// its own message count, so that event packets never starve the IMU, odometry or trajectories),
+// counts everything refused or dropped per kind, and formats those counters for the node's status
+// line.
 #pragma once
 
 #include <sensor_msgs/CameraInfo.h>
@@ -31,9 +32,10 @@ const char* inputKindName(InputKind kind);
 
 /// What happens to an input that finds its kind's queue full.
 enum class Overflow {
-  kRefuseNewest,  // the arriving input is dropped (a stream the worker must see in order)
-  kDropOldest,    // the oldest queued input of the kind goes (a live stream: frames)
-  kReplaceOldest, // as kDropOldest, but expected (only the newest matters): counted, not warned about
+  kRefuseNewest,   // the arriving input is dropped (a stream the worker must see in order)
+  kDropOldest,     // the oldest queued input of the kind goes (a live stream: frames)
+  kReplaceOldest,  // as kDropOldest, but expected (only the newest matters): counted, not warned
+                   // about
 };
 
 /// The counters of one input kind.
@@ -47,10 +49,10 @@ struct InputKindCounters {
 /// Everything counted at the input (a snapshot).
 struct NodeInputCounters {
   std::array<InputKindCounters, kNumInputKinds> kinds;
-  size_t packets_lost = 0;         // event packets ROS dropped before the callback (header.seq gaps)
-  size_t packets_empty = 0;        // event packets without events (counted in refused)
-  size_t packets_wrong_size = 0;   // width x height not the calibration's (counted in refused)
-  size_t events_outside = 0;       // events outside the packet's width x height, dropped
+  size_t packets_lost = 0;        // event packets ROS dropped before the callback (header.seq gaps)
+  size_t packets_empty = 0;       // event packets without events (counted in refused)
+  size_t packets_wrong_size = 0;  // width x height not the calibration's (counted in refused)
+  size_t events_outside = 0;      // events outside the packet's width x height, dropped
   size_t camera_info_refused = 0;  // invalid camera_info, or one of another size than the first
   const InputKindCounters& operator[](InputKind kind) const { return kinds[size_t(kind)]; }
 };
@@ -142,7 +144,8 @@ class NodeInput : public NodeInputBase {
       } else if (result != Push::kNoCalibration) {
         if (result == Push::kQueuedDroppedOldest) {
           warn = overflow_[size_t(kind)] == Overflow::kDropOldest;
-          for (auto it = queue_.begin(); it != queue_.end() && queued_[size_t(kind)] + size > bound_[size_t(kind)];) {
+          for (auto it = queue_.begin();
+               it != queue_.end() && queued_[size_t(kind)] + size > bound_[size_t(kind)];) {
             if (it->kind == kind) {
               queued_[size_t(kind)] -= it->size;
               ++counters_.kinds[size_t(kind)].dropped;

@@ -13,14 +13,15 @@ constexpr const char* kArcs = "/vwe/arcs";               // vwe_vo/AckermannArc 
 constexpr const char* kFrontendOdom = "/vwe/frontend/odom";  // nav_msgs/Odometry, dead-reckoned
 constexpr const char* kFrontendIwe = "/vwe/frontend/iwe";    // sensor_msgs/Image, sharpened events
 constexpr const char* kTrajectory = "/vwe/trajectory";       // vwe_vo/SplineTrajectory (back-end)
-constexpr const char* kImageRaw = "/dvs/image_raw";          // sensor_msgs/Image, APS frames (mono8)
+constexpr const char* kImageRaw = "/dvs/image_raw";  // sensor_msgs/Image, APS frames (mono8)
 constexpr const char* kBaselineOdom = "/vwe/baseline/odom";  // nav_msgs/Odometry, frame baseline
 constexpr const char* kBaselineTracks = "/vwe/baseline/tracks";  // sensor_msgs/Image, KLT tracks
-constexpr const char* kBackendOdom = "/vwe/odom";            // nav_msgs/Odometry on the spline
-constexpr const char* kPath = "/vwe/path";                   // nav_msgs/Path, the refined spline
-constexpr const char* kMapPoints = "/vwe/map/points";  // sensor_msgs/PointCloud2 per keyframe (odom)
-constexpr const char* kMapCloud = "/vwe/map/cloud";    // sensor_msgs/PointCloud2 global map (odom)
-constexpr const char* kMapDepth = "/vwe/map/depth";    // sensor_msgs/Image bgr8 keyframe depth
+constexpr const char* kBackendOdom = "/vwe/odom";                // nav_msgs/Odometry on the spline
+constexpr const char* kPath = "/vwe/path";  // nav_msgs/Path, the refined spline
+constexpr const char* kMapPoints =
+    "/vwe/map/points";                               // sensor_msgs/PointCloud2 per keyframe (odom)
+constexpr const char* kMapCloud = "/vwe/map/cloud";  // sensor_msgs/PointCloud2 global map (odom)
+constexpr const char* kMapDepth = "/vwe/map/depth";  // sensor_msgs/Image bgr8 keyframe depth
 
 }  // namespace topics
 

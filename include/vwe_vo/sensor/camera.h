@@ -3,20 +3,19 @@
 // distorted pixels. Invalid calibrations are refused with a message naming the field.
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "vwe_vo/common/math.h"
 
 namespace vwe_vo {
 
 struct CameraCalibration {
-  int width = 0;   // sensor width [px]
-  int height = 0;  // sensor height [px]
-  double fx = 0, fy = 0, cx = 0, cy = 0;             // intrinsics [px]
+  int width = 0;                                      // sensor width [px]
+  int height = 0;                                     // sensor height [px]
+  double fx = 0, fy = 0, cx = 0, cy = 0;              // intrinsics [px]
   std::array<double, 5> distortion{{0, 0, 0, 0, 0}};  // plumb_bob k1 k2 p1 p2 k3
   std::string camera_name = "davis";
   /// Throws std::invalid_argument naming the bad field (size, focal length, centre, distortion).
@@ -35,7 +34,9 @@ class CameraModel {
   const CameraCalibration& calibration() const { return calib_; }
   int width() const { return calib_.width; }
   int height() const { return calib_.height; }
-  bool inside(int x, int y) const { return x >= 0 && y >= 0 && x < calib_.width && y < calib_.height; }
+  bool inside(int x, int y) const {
+    return x >= 0 && y >= 0 && x < calib_.width && y < calib_.height;
+  }
 
   /// Unit bearing (camera optical frame, z forward) of pixel (x, y), undistorted. Precomputed.
   const Eigen::Vector3f& bearing(int x, int y) const { return bearings_[y * calib_.width + x]; }

@@ -9,7 +9,8 @@
 
 namespace vwe_vo {
 
-/// One event (PixelEvent, not to be confused with the message vwe_vo::Event): pixel (x, y) on the sensor, time in int64 nanoseconds, polarity (+1 ON, -1 OFF).
+/// One event (PixelEvent, not to be confused with the message vwe_vo::Event): pixel (x, y) on the
+/// sensor, time in int64 nanoseconds, polarity (+1 ON, -1 OFF).
 struct PixelEvent {
   int64_t t_ns = 0;
   uint16_t x = 0;

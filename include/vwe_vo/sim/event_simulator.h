@@ -1,24 +1,24 @@
 // ESIM-style event camera simulator: renders the scene's log intensity on the sensor at adaptive
 // time steps (per 16x16 tile: a tile is re-rendered only just before its own predicted image
-// motion reaches max_pixel_motion_px), interpolates it linearly in time per pixel and emits an event at every crossing of
-// the pixel's contrast threshold, with per-pixel threshold mismatch, a refractory period,
-// background-activity noise, hot pixels and an optional illumination toggle (HDR / low light).
+// motion reaches max_pixel_motion_px), interpolates it linearly in time per pixel and emits an
+// event at every crossing of the pixel's contrast threshold, with per-pixel threshold mismatch, a
+// refractory period, background-activity noise, hot pixels and an optional illumination toggle (HDR
+// / low light).
 #pragma once
 
 #include <cstdint>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <random>
 #include <string>
 #include <vector>
 
-#include <opencv2/core.hpp>
-
+#include "vwe_vo/common/math.h"
+#include "vwe_vo/common/thread_pool.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
-#include "vwe_vo/common/math.h"
 #include "vwe_vo/sim/scene.h"
 #include "vwe_vo/sim/vehicle_trajectory.h"
-#include "vwe_vo/common/thread_pool.h"
 
 namespace vwe_vo {
 namespace sim {
@@ -29,35 +29,36 @@ enum class IlluminationMode {
 };
 
 struct EventSimulatorOptions {
-  double contrast_threshold = 0.2;     // nominal ON/OFF threshold C [log intensity]
-  double threshold_sigma = 0.03;       // per-pixel threshold mismatch, std dev [log intensity]
-  double min_threshold = 0.05;         // lower clamp of a pixel's threshold [log intensity]
-  double refractory_s = 100e-6;        // refractory period after an event [s]
-  double noise_rate_hz = 0.1;          // background-activity noise per pixel [Hz]
-  int num_hot_pixels = 0;              // pixels that fire at hot_pixel_rate_hz [-]
-  double hot_pixel_rate_hz = 50.0;     // rate of a hot pixel [Hz]
-  double log_eps = 0.02;               // dark-current floor added to linear intensity (white = 1) before the log [-]
-  int supersampling = 1;               // s x s rays per pixel (textures are filtered anyway) [-]
-  double max_pixel_motion_px = 1.0;    // adaptive render step: max predicted motion per step [px]
-  double max_log_step = 0.05;          // adaptive step: max global log-illumination change per step [-]
-  double min_render_step_s = 1e-4;     // lower bound of the render step [s]
-  double max_render_step_s = 0.02;     // upper bound of the time between two renders of a tile [s]
+  double contrast_threshold = 0.2;  // nominal ON/OFF threshold C [log intensity]
+  double threshold_sigma = 0.03;    // per-pixel threshold mismatch, std dev [log intensity]
+  double min_threshold = 0.05;      // lower clamp of a pixel's threshold [log intensity]
+  double refractory_s = 100e-6;     // refractory period after an event [s]
+  double noise_rate_hz = 0.1;       // background-activity noise per pixel [Hz]
+  int num_hot_pixels = 0;           // pixels that fire at hot_pixel_rate_hz [-]
+  double hot_pixel_rate_hz = 50.0;  // rate of a hot pixel [Hz]
+  double log_eps =
+      0.02;  // dark-current floor added to linear intensity (white = 1) before the log [-]
+  int supersampling = 1;             // s x s rays per pixel (textures are filtered anyway) [-]
+  double max_pixel_motion_px = 1.0;  // adaptive render step: max predicted motion per step [px]
+  double max_log_step = 0.05;  // adaptive step: max global log-illumination change per step [-]
+  double min_render_step_s = 1e-4;  // lower bound of the render step [s]
+  double max_render_step_s = 0.02;  // upper bound of the time between two renders of a tile [s]
   IlluminationMode illumination = IlluminationMode::kConstant;  // global illumination over time
   double illumination_low = 0.05;      // dark level of the toggle, factor of full light [-]
   double illumination_period_s = 4.0;  // time at each level of the toggle [s]
   double illumination_ramp_s = 0.2;    // duration of each transition [s]
   double dark_noise_rate_hz = 1.0;     // extra background activity per pixel at the dark level [Hz]
-  int num_threads = 2;                 // render threads of the simulator's pool (tile rows shared out) [-]
-  uint64_t seed = 1;                   // seed of threshold mismatch, noise and hot pixels [-]
+  int num_threads = 2;  // render threads of the simulator's pool (tile rows shared out) [-]
+  uint64_t seed = 1;    // seed of threshold mismatch, noise and hot pixels [-]
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
 };
 
 struct SimulatorStats {
-  uint64_t renders = 0;        // number of render steps (each renders the tiles that need it)
-  uint64_t tile_renders = 0;   // number of rendered 16x16 tiles
-  uint64_t signal_events = 0;  // events from threshold crossings
-  uint64_t noise_events = 0;   // background activity + hot pixels
+  uint64_t renders = 0;           // number of render steps (each renders the tiles that need it)
+  uint64_t tile_renders = 0;      // number of rendered 16x16 tiles
+  uint64_t signal_events = 0;     // events from threshold crossings
+  uint64_t noise_events = 0;      // background activity + hot pixels
   uint64_t refractory_drops = 0;  // crossings suppressed by the refractory period
 };
 
@@ -113,16 +114,16 @@ class EventSimulator {
   std::unique_ptr<ThreadPool> pool_;
   int width_, height_;
   int64_t t_now_ns_ = 0;
-  std::vector<float> intensity_, depth_;         // last render
-  std::vector<float> log_prev_, log_ref_;        // per pixel: last rendered and reference log intensity
-  std::vector<float> c_on_, c_off_;              // per-pixel thresholds
-  std::vector<int64_t> last_event_ns_;           // per pixel, for the refractory period
+  std::vector<float> intensity_, depth_;   // last render
+  std::vector<float> log_prev_, log_ref_;  // per pixel: last rendered and reference log intensity
+  std::vector<float> c_on_, c_off_;        // per-pixel thresholds
+  std::vector<int64_t> last_event_ns_;     // per pixel, for the refractory period
   int tiles_x_ = 0, tiles_y_ = 0;
-  static constexpr int kRenderSubsteps = 2;      // global steps per render interval of the fastest tile
-  std::vector<int64_t> tile_allowed_ns_;         // per tile: longest time between two renders [ns]
-  std::vector<int64_t> tile_t_ns_;               // per tile: time of its last render
-  std::vector<uint8_t> tile_due_;                // per tile: rendered in the current step
-  double log_rate_ = 0.0;                        // |d log illumination / dt| [1/s]
+  static constexpr int kRenderSubsteps = 2;  // global steps per render interval of the fastest tile
+  std::vector<int64_t> tile_allowed_ns_;     // per tile: longest time between two renders [ns]
+  std::vector<int64_t> tile_t_ns_;           // per tile: time of its last render
+  std::vector<uint8_t> tile_due_;            // per tile: rendered in the current step
+  double log_rate_ = 0.0;                    // |d log illumination / dt| [1/s]
   std::vector<int> hot_pixels_;
   std::vector<EventVector> thread_events_;
   std::vector<uint64_t> thread_drops_;

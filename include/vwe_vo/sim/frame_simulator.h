@@ -9,10 +9,9 @@
 
 #include <cstdint>
 #include <deque>
+#include <opencv2/core.hpp>
 #include <random>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "vwe_vo/sim/event_simulator.h"
 
@@ -20,24 +19,27 @@ namespace vwe_vo {
 namespace sim {
 
 struct FrameSimulatorOptions {
-  double rate_hz = 25.0;                // frame rate [Hz]
-  double exposure_s = 5e-3;             // initial (and fixed, without auto-exposure) exposure [s]
-  bool auto_exposure = true;            // exposure follows the frame's trimmed mean, late and with a lag
-  double ae_target = 0.5;               // auto-exposure target: trimmed mean / full scale (driver: 128 DN) [-]
-  double ae_trim_fraction = 0.25;       // share of the darkest and of the brightest pixels left out of the metering [-]
-  double ae_time_constant_s = 0.3;      // auto-exposure lag (first order in log exposure) [s]
-  int ae_delay_frames = 1;              // frames between the metered frame and the first one exposed with the result [-]
-  double exposure_min_s = 10e-6;        // auto-exposure lower bound (driver: 10 us) [s]
-  double exposure_max_s = 25e-3;        // auto-exposure upper bound (driver: 25 ms; < frame period) [s]
-  double saturation_exposure_s = 8e-3;  // exposure at which white (irradiance 1, full light) fills the well [s]
-  double full_well_e = 10000.0;         // electrons at saturation (sets the shot noise) [e-]
-  double read_noise_e = 18.0;           // temporal read noise, std dev: 20 log10(10000 / 18) = 55 dB [e-]
-  double prnu = 0.01;                   // photo-response (gain) non-uniformity per pixel, std dev [-]
-  double dsnu_dn = 0.5;                 // offset non-uniformity per pixel, std dev [DN]
-  double black_level_dn = 2.0;          // offset of a dark pixel [DN]
-  double blur_step_s = 2.5e-3;          // spacing of the renders averaged over an exposure [s]
-  int max_blur_renders = 12;            // cap on renders per frame [-]
-  uint64_t seed = 1;                    // noise seed [-]
+  double rate_hz = 25.0;      // frame rate [Hz]
+  double exposure_s = 5e-3;   // initial (and fixed, without auto-exposure) exposure [s]
+  bool auto_exposure = true;  // exposure follows the frame's trimmed mean, late and with a lag
+  double ae_target = 0.5;  // auto-exposure target: trimmed mean / full scale (driver: 128 DN) [-]
+  double ae_trim_fraction =
+      0.25;  // share of the darkest and of the brightest pixels left out of the metering [-]
+  double ae_time_constant_s = 0.3;  // auto-exposure lag (first order in log exposure) [s]
+  int ae_delay_frames =
+      1;  // frames between the metered frame and the first one exposed with the result [-]
+  double exposure_min_s = 10e-6;  // auto-exposure lower bound (driver: 10 us) [s]
+  double exposure_max_s = 25e-3;  // auto-exposure upper bound (driver: 25 ms; < frame period) [s]
+  double saturation_exposure_s =
+      8e-3;  // exposure at which white (irradiance 1, full light) fills the well [s]
+  double full_well_e = 10000.0;  // electrons at saturation (sets the shot noise) [e-]
+  double read_noise_e = 18.0;    // temporal read noise, std dev: 20 log10(10000 / 18) = 55 dB [e-]
+  double prnu = 0.01;            // photo-response (gain) non-uniformity per pixel, std dev [-]
+  double dsnu_dn = 0.5;          // offset non-uniformity per pixel, std dev [DN]
+  double black_level_dn = 2.0;   // offset of a dark pixel [DN]
+  double blur_step_s = 2.5e-3;   // spacing of the renders averaged over an exposure [s]
+  int max_blur_renders = 12;     // cap on renders per frame [-]
+  uint64_t seed = 1;             // noise seed [-]
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
   /// Full well over read noise [dB] (the 8-bit output adds quantisation on top).

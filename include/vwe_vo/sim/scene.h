@@ -3,16 +3,15 @@
 // the camera's per-pixel bearing table (so images are on the distorted sensor).
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include <Eigen/Core>
-
-#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/common/math.h"
 #include "vwe_vo/common/thread_pool.h"
+#include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sim/texture.h"
 
 namespace vwe_vo {
@@ -20,17 +19,19 @@ namespace sim {
 
 class VehicleTrajectory;
 
-/// An axis-aligned rectangle in odom, seen from both sides unless `facing` says otherwise. Surface coordinates (u, v) [m]:
-/// normal x -> (y, z), normal y -> (x, z), normal z -> (x, y) (v is the height on walls).
+/// An axis-aligned rectangle in odom, seen from both sides unless `facing` says otherwise. Surface
+/// coordinates (u, v) [m]: normal x -> (y, z), normal y -> (x, z), normal z -> (x, y) (v is the
+/// height on walls).
 struct Face {
-  int axis = 2;          // index of the normal axis (0 x, 1 y, 2 z)
-  float plane = 0.f;     // coordinate along the normal [m]
-  float lo[2] = {0, 0};  // lower bounds of (u, v) [m]
-  float hi[2] = {0, 0};  // upper bounds of (u, v) [m]
-  int texture = 0;       // index into Scene::textures
+  int axis = 2;              // index of the normal axis (0 x, 1 y, 2 z)
+  float plane = 0.f;         // coordinate along the normal [m]
+  float lo[2] = {0, 0};      // lower bounds of (u, v) [m]
+  float hi[2] = {0, 0};      // upper bounds of (u, v) [m]
+  int texture = 0;           // index into Scene::textures
   float offset[2] = {0, 0};  // texture offset added to (u, v) [m]
-  float gain = 1.f;      // reflectance x illumination factor of the face [-]
-  int facing = 0;        // +1 / -1: seen only from the + / - side of its normal axis (a closed box's outside); 0: both
+  float gain = 1.f;          // reflectance x illumination factor of the face [-]
+  int facing = 0;  // +1 / -1: seen only from the + / - side of its normal axis (a closed box's
+                   // outside); 0: both
 };
 
 struct Scene {
@@ -41,9 +42,11 @@ struct Scene {
 
   /// Adds the faces of the box [min, max] (without the bottom face), each seen from outside only;
   /// returns the first index.
-  size_t addBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max, int texture, float gain, uint64_t seed);
+  size_t addBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max, int texture, float gain,
+                uint64_t seed);
   /// Adds one rectangle with normal `axis` at `plane` spanning [lo, hi] in its (u, v).
-  size_t addRect(int axis, float plane, Eigen::Vector2f lo, Eigen::Vector2f hi, int texture, float gain, uint64_t seed);
+  size_t addRect(int axis, float plane, Eigen::Vector2f lo, Eigen::Vector2f hi, int texture,
+                 float gain, uint64_t seed);
 };
 
 /// Scene kinds: "indoor" (a lab room with furniture and posters), "corridor", "street"
@@ -75,13 +78,13 @@ class SceneRenderer {
  private:
   // A face that may be visible from the prepared pose, with what the ray loop needs inline.
   struct FaceCam {
-    int axis, ua, va;          // normal axis and surface axes
-    float plane_rel;           // plane - camera centre along the normal [m]
-    float o_u, o_v;            // camera centre along the surface axes [m]
-    float lo[2], hi[2];        // bounds in (u, v) [m]
-    float offset[2];           // texture offset [m]
+    int axis, ua, va;    // normal axis and surface axes
+    float plane_rel;     // plane - camera centre along the normal [m]
+    float o_u, o_v;      // camera centre along the surface axes [m]
+    float lo[2], hi[2];  // bounds in (u, v) [m]
+    float offset[2];     // texture offset [m]
     float gain;
-    float min_dist;            // distance from the camera centre to the nearest point of the face [m]
+    float min_dist;  // distance from the camera centre to the nearest point of the face [m]
     const Texture* tex;
   };
   const Scene& scene_;
@@ -94,12 +97,13 @@ class SceneRenderer {
   std::vector<float> ray_x_, ray_y_, ray_z_;
   std::vector<size_t> tile_ray_begin_;
   std::vector<Eigen::Vector4f> tile_bounds_;  // normalised (x/z, y/z) min/max per tile
-  std::vector<Eigen::Vector2f> col_bounds_, row_bounds_;  // union of tile bounds per tile column / row
+  std::vector<Eigen::Vector2f> col_bounds_,
+      row_bounds_;                 // union of tile bounds per tile column / row
   Eigen::Vector4f sensor_bounds_;  // union of all tile bounds
   // Per prepared pose:
   Eigen::Matrix3f R_odom_cam_;
   Eigen::Vector3f c_odom_;
-  std::vector<FaceCam> visible_;            // faces that may be visible, nearest (min_dist) first
+  std::vector<FaceCam> visible_;              // faces that may be visible, nearest (min_dist) first
   std::vector<Eigen::Vector4f> face_bounds_;  // per visible face: normalised bounding box
   std::vector<int> order_;                    // visible faces by min_dist
   std::vector<std::vector<int>> tile_faces_;  // indices into visible_, nearest first

@@ -1,5 +1,6 @@
 // Procedural textures with natural-image statistics for the event simulator, precomputed once as
-// images with a mip pyramid and sampled with (near-)trilinear filtering (so static edges do not flicker).
+// images with a mip pyramid and sampled with (near-)trilinear filtering (so static edges do not
+// flicker).
 #pragma once
 
 #include <algorithm>
@@ -13,12 +14,12 @@ namespace sim {
 
 /// What a texture looks like: the generator mixes ~1/f multi-scale noise with shapes.
 enum class TextureStyle {
-  kGeneric,   // noise + random rectangles, lines, blobs of many orientations and contrasts
-  kPoster,    // high-contrast shapes and text-like bars (posters, whiteboards)
-  kFloor,     // speckled vinyl / terrazzo: dense dark and light chips, tile seams, scuffs
-  kCeiling,   // lower contrast noise with tile seams and scuffs (ceiling tiles, road markings)
-  kFacade,    // brick-like noise with a grid of dark windows with frames
-  kAsphalt,   // fine grain, cracks and patches
+  kGeneric,  // noise + random rectangles, lines, blobs of many orientations and contrasts
+  kPoster,   // high-contrast shapes and text-like bars (posters, whiteboards)
+  kFloor,    // speckled vinyl / terrazzo: dense dark and light chips, tile seams, scuffs
+  kCeiling,  // lower contrast noise with tile seams and scuffs (ceiling tiles, road markings)
+  kFacade,   // brick-like noise with a grid of dark windows with frames
+  kAsphalt,  // fine grain, cracks and patches
 };
 
 /// A square, power-of-two texture of *linear* intensity (reflectance, 1 = bright white) with its

@@ -22,16 +22,16 @@ struct ProfileSegment {
 
 /// Small camera-mount vibration applied to base_link (z, roll, pitch); off by default.
 struct VibrationOptions {
-  double height_amplitude_m = 0.0;  // vertical bounce amplitude [m]
-  double pitch_amplitude_rad = 0.0; // pitch oscillation amplitude [rad]
-  double roll_amplitude_rad = 0.0;  // roll oscillation amplitude [rad]
-  double frequency_hz = 3.0;        // base frequency of the oscillation [Hz]
+  double height_amplitude_m = 0.0;   // vertical bounce amplitude [m]
+  double pitch_amplitude_rad = 0.0;  // pitch oscillation amplitude [rad]
+  double roll_amplitude_rad = 0.0;   // roll oscillation amplitude [rad]
+  double frequency_hz = 3.0;         // base frequency of the oscillation [Hz]
   void validate() const;
 };
 
 struct VehicleTrajectoryOptions {
   double table_step_s = 0.5e-3;  // integration / table step [s]
-  double blend_s = 0.4;          // smooth transition between profile segments [s] (centred at the boundary)
+  double blend_s = 0.4;  // smooth transition between profile segments [s] (centred at the boundary)
   Vec3 start_xyyaw = Vec3::Zero();  // start pose (x [m], y [m], yaw [rad])
   VibrationOptions vibration;
   void validate() const;
@@ -47,7 +47,8 @@ class VehicleTrajectory {
                                        const VehicleTrajectoryOptions& options = {});
   /// A TUM trajectory of base_link (times shifted so the first is 0); v and omega by finite
   /// differences of the planar part.
-  static VehicleTrajectory fromTum(const Trajectory3& tum, const VehicleTrajectoryOptions& options = {});
+  static VehicleTrajectory fromTum(const Trajectory3& tum,
+                                   const VehicleTrajectoryOptions& options = {});
 
   int64_t durationNs() const { return duration_ns_; }
   double durationSec() const { return nsToSec(duration_ns_); }
@@ -67,7 +68,7 @@ class VehicleTrajectory {
  private:
   struct Sample {
     double x, y, yaw;
-    double v, omega;  // at the sample time
+    double v, omega;            // at the sample time
     double v_step, omega_step;  // constant over [t_k, t_k+1): the arc that integrates to sample k+1
   };
   double profileValue(double t_s, bool want_v) const;

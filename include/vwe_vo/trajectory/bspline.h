@@ -214,7 +214,8 @@ class BSplineCameraModel : public TrajectoryModel {
   const Reference& reference(Reference* fresh) const;
   /// T_Vr_Vt at t: position R_r^T (p_t - p_r) returned, heading psi_t - psi_r in *dpsi, and the
   /// derivatives of (psi_t, p_t) in *jac_t if not null.
-  Vec2 relativePose(const Reference& ref, int64_t t_ns, double* dpsi, PlanarPoseJacobian* jac_t) const;
+  Vec2 relativePose(const Reference& ref, int64_t t_ns, double* dpsi,
+                    PlanarPoseJacobian* jac_t) const;
 
   std::shared_ptr<const BSpline> spline_;
   Pose3 T_base_cam_;

@@ -61,7 +61,8 @@ class TrajectoryModel {
   }
   /// gradient (size numParams()) += sum_i g_i . d(psi, x, y)(t_i) / dtheta, with g_i the
   /// derivative of a scalar w.r.t. the planar coordinates of T_Vr_Vt(t_ns[i]).
-  virtual void addPlanarGradient(const std::vector<int64_t>& /*t_ns*/, const std::vector<Vec3>& /*g*/,
+  virtual void addPlanarGradient(const std::vector<int64_t>& /*t_ns*/,
+                                 const std::vector<Vec3>& /*g*/,
                                  Eigen::VectorXd* /*gradient*/) const {
     throw std::logic_error("TrajectoryModel: this model has no planar Jacobian");
   }

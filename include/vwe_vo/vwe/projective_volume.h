@@ -28,13 +28,13 @@ enum class Contrast { kVariance, kDensityPerVote };
 const char* contrastName(Contrast contrast);
 
 struct VolumeOptions {
-  double grid_scale = 0.5;   // grid resolution relative to the sensor (0.5 = half resolution)
+  double grid_scale = 0.5;  // grid resolution relative to the sensor (0.5 = half resolution)
   Contrast contrast = Contrast::kDensityPerVote;  // the objective's measure (see Contrast)
-  int margin_px = 8;         // grid padding around the image on each side [grid px]
-  int num_planes = 30;       // depth planes, uniform in inverse depth
-  double z_min_m = 0.4;      // nearest plane [m]
-  double z_max_m = 12.0;     // farthest plane [m]
-  int num_threads = 2;       // threads for voting (split over planes)
+  int margin_px = 8;      // grid padding around the image on each side [grid px]
+  int num_planes = 30;    // depth planes, uniform in inverse depth
+  double z_min_m = 0.4;   // nearest plane [m]
+  double z_max_m = 12.0;  // farthest plane [m]
+  int num_threads = 2;    // threads for voting (split over planes)
   // The VWE objective (not the EMVS DSI) evaluates the trajectory, pose and Jacobian, once per
   // slice of this many seconds, at its middle, for all events in it (0: at each event's time).
   // 0.5 ms moves the camera 3 mm at 6 m/s and turns it 0.5 mrad at 1 rad/s (0.1 px), and saves
@@ -53,13 +53,14 @@ struct VolumeRay {
 
 /// Converts origin o and direction d (reference camera frame, d_z > 0) to a VolumeRay for the
 /// virtual pinhole (fx, fy, cx, cy). Returns false if d_z is not positive.
-bool makeVolumeRay(const Vec3& o, const Vec3& d, double fx, double fy, double cx, double cy, VolumeRay* ray);
+bool makeVolumeRay(const Vec3& o, const Vec3& d, double fx, double fy, double cx, double cy,
+                   VolumeRay* ray);
 
 class ProjectiveVolume {
  public:
   /// sensor_* describe the undistorted virtual pinhole of the full-resolution sensor.
-  ProjectiveVolume(const VolumeOptions& options, int sensor_width, int sensor_height, double fx, double fy,
-                   double cx, double cy);
+  ProjectiveVolume(const VolumeOptions& options, int sensor_width, int sensor_height, double fx,
+                   double fy, double cx, double cy);
 
   const VolumeOptions& options() const { return options_; }
   int width() const { return width_; }
@@ -130,8 +131,8 @@ class ProjectiveVolume {
   int width_, height_;
   double fx_, fy_, cx_, cy_;
   std::vector<double> rho_;
-  std::vector<float> grid_;                        // allocated by the first vote()
-  std::vector<std::vector<float>> scratch_;        // one plane per thread (contrastOfRays)
+  std::vector<float> grid_;                  // allocated by the first vote()
+  std::vector<std::vector<float>> scratch_;  // one plane per thread (contrastOfRays)
   std::vector<std::vector<Eigen::Vector4d>> chunk_sens_;
   /// The contrast of a grid with this sum of squares and sum (= votes) of its voxels.
   double contrastOf(double sum_squares, double sum) const;

@@ -7,8 +7,8 @@
 
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
-#include "vwe_vo/vwe/projective_volume.h"
 #include "vwe_vo/trajectory/trajectory_model.h"
+#include "vwe_vo/vwe/projective_volume.h"
 #include "vwe_vo/vwe/vwe_objective.h"
 
 namespace vwe_vo {

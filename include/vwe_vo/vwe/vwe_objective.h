@@ -11,11 +11,11 @@
 #include <memory>
 #include <vector>
 
+#include "vwe_vo/common/thread_pool.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
-#include "vwe_vo/vwe/projective_volume.h"
-#include "vwe_vo/common/thread_pool.h"
 #include "vwe_vo/trajectory/trajectory_model.h"
+#include "vwe_vo/vwe/projective_volume.h"
 
 namespace vwe_vo {
 
@@ -25,15 +25,15 @@ EventVector subsampleEvents(const EventVector& events, size_t max_events, uint64
 /// Subsampling that gives every one of `bins` equal time slices of [t0, t1) the same budget
 /// (max_events / bins, all of a slice's events when it has fewer): the VWE then weighs time, not
 /// event count, so a window whose motion changes is not pulled towards its busiest part.
-EventVector subsampleEventsPerTimeSlice(const EventVector& events, int64_t t0_ns, int64_t t1_ns, size_t max_events,
-                                        int bins, uint64_t seed);
+EventVector subsampleEventsPerTimeSlice(const EventVector& events, int64_t t0_ns, int64_t t1_ns,
+                                        size_t max_events, int bins, uint64_t seed);
 
 struct VweEvaluation {
-  double contrast = 0.0;     // VolumeOptions::contrast of the volume the rays vote
-  size_t rays = 0;           // events turned into rays
-  size_t skipped_time = 0;   // events the model does not cover (not extrapolated)
-  size_t skipped_behind = 0; // rays pointing away from the reference camera
-  size_t votes = 0;          // plane votes cast
+  double contrast = 0.0;      // VolumeOptions::contrast of the volume the rays vote
+  size_t rays = 0;            // events turned into rays
+  size_t skipped_time = 0;    // events the model does not cover (not extrapolated)
+  size_t skipped_behind = 0;  // rays pointing away from the reference camera
+  size_t votes = 0;           // plane votes cast
 };
 
 /// Rays (and their Jacobians) are built in parallel on the volume's num_threads threads, in
@@ -56,7 +56,8 @@ class VweObjective {
   ProjectiveVolume& volume() const { return *volume_; }
 
  private:
-  VweEvaluation buildRays(const EventVector& events, const TrajectoryModel& model, bool with_jacobian);
+  VweEvaluation buildRays(const EventVector& events, const TrajectoryModel& model,
+                          bool with_jacobian);
 
   // What one chunk of events produced (kept between calls: no allocation once warmed up).
   struct Chunk {
