@@ -51,7 +51,9 @@ TEST(Simulator, EventsSortedAndInsideSensor) {
     ASSERT_TRUE(ev[i].polarity == 1 || ev[i].polarity == -1);
     ASSERT_GT(ev[i].t_ns, 0);
     ASSERT_LE(ev[i].t_ns, secToNs(0.25));
-    if (i) ASSERT_LE(ev[i - 1].t_ns, ev[i].t_ns);
+    if (i) {
+      ASSERT_LE(ev[i - 1].t_ns, ev[i].t_ns);
+    }
   }
 }
 
@@ -74,7 +76,9 @@ TEST(Simulator, ChunkedCallsStaySortedInsideTheirIntervals) {
     for (size_t i = 0; i < ev.size(); ++i) {
       ASSERT_GT(ev[i].t_ns, secToNs(0.025 * (k - 1)));
       ASSERT_LE(ev[i].t_ns, secToNs(0.025 * k));
-      if (i) ASSERT_LE(ev[i - 1].t_ns, ev[i].t_ns);
+      if (i) {
+        ASSERT_LE(ev[i - 1].t_ns, ev[i].t_ns);
+      }
     }
     total += ev.size();
   }
@@ -223,8 +227,9 @@ TEST(SimulatorTrajectory, CircleHasRadiusVOverOmegaAndTangentHeading) {
     EXPECT_NEAR((p.head<2>() - centre).norm(), v / w, 1e-6);
     const Vec3 q = tr.planar(t + 1000000);
     const double dir = std::atan2(q.y() - p.y(), q.x() - p.x());
-    if (t + 1000000 <= tr.durationNs())
+    if (t + 1000000 <= tr.durationNs()) {
       EXPECT_NEAR(wrapAngle(dir - p.z() - 0.5 * w * 1e-3), 0.0, 1e-5);
+    }
   }
   EXPECT_NEAR(tr.pathLength(), 2 * kPi * v / w, 1e-3);
   EXPECT_NEAR(tr.planar(tr.durationNs()).head<2>().norm(), 0.0, 1e-6);  // closed loop
