@@ -1,7 +1,7 @@
 // Regression of the back-end's accuracy on the simulator's standard sequences (generated in
 // process with their fixed seeds), with the shipped configuration: the front-end + back-end
 // pipeline as vwe_vo_offline runs it, scored with the paper's metric against the ground truth.
-// The back-end must beat the front-end alone (rotation RMSE at least 20 % lower) and
+// The back-end must beat the front-end alone (issue #6: rotation RMSE at least 20 % lower) and
 // keep the scale. Thresholds carry margin over the measured values printed by the test.
 #include <gtest/gtest.h>
 
@@ -75,54 +75,60 @@ PipelineRun run(const std::string& name, const std::string& config_file = "vwe_v
   return r;
 }
 
-/// The targets indoors: at least 20 % below the front-end, translation direction
+/// The issue #6 targets indoors: at least 20 % below the front-end, translation direction
 /// <= 0.3 deg/s, ATE <= 2 %, no NaN (indoor_long: through its 3 s standstill), tracked.
-void expectIndoorTargets(const PipelineRun& r, double max_rot_rmse_deg_s) {
+void expectIndoorTargets(const PipelineRun& r, double max_rot_rmse_deg_s,
+                         double max_trans_dir_rmse_deg_s, double max_ate_percent) {
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.8 * r.frontend.rpe.rot_rmse_deg_s);
   EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, max_rot_rmse_deg_s);
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.3);
-  EXPECT_LE(r.backend.ate_percent_of_path, 2.0);
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, max_trans_dir_rmse_deg_s);
+  EXPECT_LE(r.backend.ate_percent_of_path, max_ate_percent);
   EXPECT_GE(r.backend.tracked_fraction, 0.95);
 }
 
 }  // namespace
 
-// Measured: back-end 0.180 deg/s against the front-end's 0.273 (34 % lower).
+// Measured: back-end 0.180 deg/s against the front-end's 0.273 (34 % lower), translation
+// direction 0.099 deg/s, ATE 0.06 %.
 TEST(BackendAccuracy, IndoorCircle) {
-  expectIndoorTargets(run("indoor_circle"), 0.3);
+  expectIndoorTargets(run("indoor_circle"), 0.24, 0.14, 0.09);
 }
 
-// Measured: 0.219 against 0.361 (39 % lower).
+// Measured: 0.219 against 0.361 (39 % lower), translation direction 0.157 deg/s, ATE 0.13 %.
 TEST(BackendAccuracy, IndoorLongWithStandstill) {
-  expectIndoorTargets(run("indoor_long"), 0.4);
+  expectIndoorTargets(run("indoor_long"), 0.29, 0.21, 0.18);
 }
 
 // Measured: back-end 0.341 deg/s against the front-end's 0.481 (29 % lower), translation
-// direction 0.177 deg/s, scale per 10 m 0.993-1.008. The ratio moves with where the windows
-// fall (StreetLongStartedLate), hence the 20 % bound.
+// direction 0.177 deg/s, scale per 10 m 0.993-1.008. (The bag of make demo, whose /odom and
+// /dvs/imu carry the simulated noise, scale error and bias: 0.349 against 0.474, 26 % lower;
+// 24-26 % over subsampling seeds 1-3. The ratio moves with where the windows fall: 18-28 % over
+// bag starts 0.1-0.25 s late. With the arcs' rates interpolated between their middles for the
+// first fit, as indoors, session 9 measured 8 % here.)
 TEST(BackendAccuracy, StreetLongWithTheCarConfig) {
   // A car at 5-8 m/s with 90-degree turns; config/car.yaml (its mount, one-sided windows with
   // planes from 10 m where the facade is deep enough). The scale comes from the wheel speed: no
   // drift along 250 m.
   const PipelineRun r = run("street_long", "car.yaml");
   EXPECT_EQ(r.nonfinite_poses, 0u);
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.8 * r.frontend.rpe.rot_rmse_deg_s);
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.6);
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.3);
-  EXPECT_LE(r.backend.ate_percent_of_path, 2.0);
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.8 * r.frontend.rpe.rot_rmse_deg_s);  // measured 0.71
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.45);                                 // measured 0.341
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.24);                           // measured 0.177
+  EXPECT_LE(r.backend.ate_percent_of_path, 0.1);                                 // measured 0.07
   ASSERT_GE(r.backend.scale_drift.ratios.size(), 20u);
-  EXPECT_LE(r.backend.scale_drift.max_ratio / r.backend.scale_drift.min_ratio, 1.05);
+  EXPECT_LE(r.backend.scale_drift.max_ratio / r.backend.scale_drift.min_ratio,
+            1.023);  // measured 1.015
 }
 
 TEST(BackendAccuracy, StreetLongStartedLate) {
-  // The same street with the system started 0.25 s into it: every window falls elsewhere, and
-  // a split window's halves that rescanned the full range would win spurious peaks on straight
-  // driving.
+  // The same street with the system started 0.25 s into it: every window falls elsewhere. The
+  // halves of a split window once rescanned the full range there and won spurious peaks 26-68
+  // deg/s off on straight driving (vwe_vo_offline --start 0.25 on the bag: 2.0 deg/s).
   const PipelineRun r = run("street_long", "car.yaml", 0.25);
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_LE(r.backend.rpe.rot_rmse_deg_s,
             0.9 * r.frontend.rpe.rot_rmse_deg_s);  // measured 0.361 vs 0.439
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.6);
-  EXPECT_LE(r.backend.ate_percent_of_path, 2.0);
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.48);   // measured 0.361
+  EXPECT_LE(r.backend.ate_percent_of_path, 0.12);  // measured 0.08
 }

@@ -122,7 +122,11 @@ TEST(OptionsYaml, EmittedOptionsLoadBackUnchanged) {
       loadPipelineConfig(writeTemp("cfg_emitted.yaml", YAML::Dump(emitted)));
   EXPECT_TRUE(again.warnings.empty()) << again.warnings[0];
   EXPECT_TRUE(again.T_base_cam.isApprox(car.T_base_cam, 1e-12));
-  EXPECT_EQ(YAML::Dump(optionsToYaml(again)), YAML::Dump(optionsToYaml(car)));
+  // The rest exactly (the quaternion goes through a rotation matrix: its last digit may move).
+  YAML::Node a = optionsToYaml(again), b = optionsToYaml(car);
+  a.remove("T_base_cam");
+  b.remove("T_base_cam");
+  EXPECT_EQ(YAML::Dump(a), YAML::Dump(b));
   EXPECT_EQ(again.backend.volume.z_min_m, 6.0);  // the car's, not the default
 }
 
