@@ -1,7 +1,7 @@
 // Regression of the back-end's accuracy on the simulator's standard sequences (generated in
 // process with their fixed seeds), with the shipped configuration: the front-end + back-end
 // pipeline as vwe_vo_offline runs it, scored with the paper's metric against the ground truth.
-// The back-end must beat the front-end alone (issue #6: rotation RMSE at least 20 % lower) and
+// The back-end must beat the front-end alone (rotation RMSE at least 20 % lower) and
 // keep the scale. Thresholds carry margin over the measured values printed by the test.
 #include <gtest/gtest.h>
 
@@ -75,7 +75,7 @@ PipelineRun run(const std::string& name, const std::string& config_file = "vwe_v
   return r;
 }
 
-/// The issue #6 targets indoors: at least 20 % below the front-end, translation direction
+/// The targets indoors: at least 20 % below the front-end, translation direction
 /// <= 0.3 deg/s, ATE <= 2 %, no NaN (indoor_long: through its 3 s standstill), tracked.
 void expectIndoorTargets(const PipelineRun& r, double max_rot_rmse_deg_s,
                          double max_trans_dir_rmse_deg_s, double max_ate_percent) {
@@ -101,11 +101,8 @@ TEST(BackendAccuracy, IndoorLongWithStandstill) {
 }
 
 // Measured: back-end 0.341 deg/s against the front-end's 0.481 (29 % lower), translation
-// direction 0.177 deg/s, scale per 10 m 0.993-1.008. (The bag of make demo, whose /odom and
-// /dvs/imu carry the simulated noise, scale error and bias: 0.349 against 0.474, 26 % lower;
-// 24-26 % over subsampling seeds 1-3. The ratio moves with where the windows fall: 18-28 % over
-// bag starts 0.1-0.25 s late. With the arcs' rates interpolated between their middles for the
-// first fit, as indoors, session 9 measured 8 % here.)
+// direction 0.177 deg/s, scale per 10 m 0.993-1.008. The ratio moves with where the
+// windows fall (subsampling seed, bag start), so the street asks for 20 % below the front-end.
 TEST(BackendAccuracy, StreetLongWithTheCarConfig) {
   // A car at 5-8 m/s with 90-degree turns; config/car.yaml (its mount, one-sided windows with
   // planes from 10 m where the facade is deep enough). The scale comes from the wheel speed: no
