@@ -7,6 +7,7 @@
 #include "vwe_vo/io/config.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/vwe/ray_builder.h"
 #include "vwe_vo/vwe/vwe_objective.h"
 
 using namespace vwe_vo;
@@ -75,12 +76,13 @@ void BM_VotingKernel(benchmark::State& state) {
   const EventVector events = synthetic::randomPointEvents(camera(), truth, 30000, 2, 0.5, 3000);
   std::vector<VolumeRay> rays;
   rays.reserve(num_events);
+  const VolumeRayBuilder<double> make_ray(volume);
   for (int i = 0; i < num_events; ++i) {
     const PixelEvent& e = events[i % events.size()];
     const Pose3 T = truth.T_Cr_Ct(e.t_ns);
     VolumeRay r;
-    if (makeVolumeRay(T.translation(), T.linear() * camera().bearing(e.x, e.y).cast<double>(),
-                      volume.fx(), volume.fy(), volume.cx(), volume.cy(), &r))
+    if (make_ray(RayPose<double>(T.linear(), T.translation()),
+                 camera().bearing(e.x, e.y).cast<double>(), &r))
       rays.push_back(r);
   }
   size_t votes = 0;

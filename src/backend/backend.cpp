@@ -11,6 +11,7 @@
 #include <string>
 
 #include "vwe_vo/common/validated.h"
+#include "vwe_vo/sensor/subsample.h"
 
 namespace vwe_vo {
 

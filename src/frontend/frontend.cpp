@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "vwe_vo/common/validated.h"
+#include "vwe_vo/sensor/subsample.h"
 
 namespace vwe_vo {
 

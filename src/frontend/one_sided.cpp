@@ -17,20 +17,16 @@ void OneSidedOptions::validate(const VolumeOptions& normal, const std::string& s
 }
 
 namespace {
-/// Straight ahead of base_link in a pinhole (fx, fy, cx, cy); false if the camera does not look
-/// forward.
-bool forwardPixelIn(double fx, double fy, double cx, double cy, const Pose3& T_base_cam,
-                    Vec2* pixel) {
-  const Vec3 d = T_base_cam.linear().transpose() * Vec3::UnitX();  // in the camera frame
-  if (!(d.z() > 1e-3)) return false;
-  *pixel = Vec2(fx * d.x() / d.z() + cx, fy * d.y() / d.z() + cy);
-  return true;
+/// Straight ahead of base_link in the camera frame; false if the camera does not look forward.
+bool forwardDirection(const Pose3& T_base_cam, Vec3* d) {
+  *d = T_base_cam.linear().transpose() * Vec3::UnitX();
+  return d->z() > 1e-3;
 }
 }  // namespace
 
 bool forwardPixel(const CameraModel& camera, const Pose3& T_base_cam, Vec2* pixel) {
-  const CameraCalibration& c = camera.calibration();
-  return forwardPixelIn(c.fx, c.fy, c.cx, c.cy, T_base_cam, pixel);
+  Vec3 d;
+  return forwardDirection(T_base_cam, &d) && camera.project(d, pixel);
 }
 
 double sideBalance(const EventVector& events, const Vec2& pixel) {
@@ -84,10 +80,12 @@ bool OneSidedRule::oneSided(const EventVector& events) const {
 bool OneSidedRule::deepEnough(VweObjective& normal, const EventVector& events,
                               const TrajectoryModel& model) const {
   ProjectiveVolume& volume = normal.volume();
-  // Straight ahead in the volume's grid (the rays' (u0, v0) are directions in its pinhole);
-  // enabled() means the camera looks forward.
-  Vec2 forward;
-  forwardPixelIn(volume.fx(), volume.fy(), volume.cx(), volume.cy(), T_base_cam_, &forward);
+  // Straight ahead in the volume's grid (the rays' (u0, v0) are directions in its undistorted
+  // pinhole); enabled() means the camera looks forward.
+  Vec3 d;
+  forwardDirection(T_base_cam_, &d);
+  const Vec2 forward(volume.fx() * d.x() / d.z() + volume.cx(),
+                     volume.fy() * d.y() / d.z() + volume.cy());
   normal.voteOnly(events, model);
   const double depth = oneSidedDepth(volume, normal.lastRays(), forward);
   volume.clear(normal.lastRays());

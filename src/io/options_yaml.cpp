@@ -95,7 +95,7 @@ class Writer {
 
 // The keys of every options struct, once for the loader (Reader) and the emitter (Writer).
 
-/// `vwe`: the VWE's volume (front-end, back-end); the EMVS DSI has no contrast and no pose slice.
+/// `vwe`: the VWE's volume (front-end, back-end); the EMVS DSI has no contrast.
 template <typename Archive>
 void fields(Archive& a, VolumeOptions* o, bool vwe) {
   a("grid_scale", &o->grid_scale);
@@ -105,7 +105,7 @@ void fields(Archive& a, VolumeOptions* o, bool vwe) {
   a("z_min_m", &o->z_min_m);
   a("z_max_m", &o->z_max_m);
   a("num_threads", &o->num_threads);
-  if (vwe) a("pose_slice_s", &o->pose_slice_s);
+  a("pose_slice_s", &o->pose_slice_s);
 }
 
 template <typename Archive>
@@ -201,7 +201,6 @@ void fields(Archive& a, EmvsOptions* o, GlobalMapOptions* global_map) {
   a("kf_distance_m", &o->kf_distance_m);
   a("kf_rotation_deg", &o->kf_rotation_deg);
   a("max_events_per_keyframe", &o->max_events_per_keyframe);
-  a("pose_slice_ns", &o->pose_slice_ns);
   a("max_pending_events", &o->max_pending_events);
   a("max_event_rate_hz", &o->max_event_rate_hz);
 }

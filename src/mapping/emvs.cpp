@@ -2,13 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
-#include <fstream>
 #include <limits>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
-#include "vwe_vo/vwe/vwe_objective.h"
+#include "vwe_vo/vwe/ray_builder.h"
 
 namespace vwe_vo {
 
@@ -87,6 +85,20 @@ cv::Mat maskedMedian(const cv::Mat& depth, const cv::Mat& mask, int size) {
 
 }  // namespace
 
+EmvsCounts& EmvsCounts::operator+=(const EmvsCounts& o) {
+  events += o.events;
+  voted += o.voted;
+  skipped_time += o.skipped_time;
+  skipped_nan += o.skipped_nan;
+  skipped_behind += o.skipped_behind;
+  skipped_outside += o.skipped_outside;
+  votes += o.votes;
+  selected += o.selected;
+  outliers += o.outliers;
+  points += o.points;
+  return *this;
+}
+
 EmvsOptions::EmvsOptions() {
   volume.grid_scale = 1.0;
   volume.margin_px = 0;
@@ -122,7 +134,6 @@ void EmvsOptions::validate(const std::string& section) const {
   if (!(kf_rotation_deg > 0.0) || !std::isfinite(kf_rotation_deg))
     fail("kf_rotation_deg must be positive");
   if (max_events_per_keyframe == 0) fail("max_events_per_keyframe must be positive");
-  if (pose_slice_ns < 0) fail("pose_slice_ns must be >= 0");
   if (nms_radius_px < 0 || nms_radius_px > 10) fail("nms_radius_px must be in [0, 10]");
   if (nms_planes < 0) fail("nms_planes must be >= 0");
   if (max_pending_events == 0) fail("max_pending_events must be positive");
@@ -269,41 +280,6 @@ void extractKeyframe(const ProjectiveVolume& volume, const EmvsOptions& options,
   kf->counts.points = kf->points_cam.size();
 }
 
-EmvsKeyframe mapKeyframe(const EventVector& events, const TrajectoryModel& T_kf_cam,
-                         const Pose3& T_odom_kf, const CameraModel& camera,
-                         const EmvsOptions& options) {
-  options.validate();
-  const CameraCalibration& c = camera.calibration();
-  ProjectiveVolume volume(options.volume, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
-  EmvsKeyframe kf;
-  kf.t_kf_ns = T_kf_cam.referenceTime();
-  kf.t_begin_ns = kf.t_end_ns = kf.t_kf_ns;
-  kf.counts.events = events.size();
-  // Refuse what voteOnly cannot judge (pixels outside the sensor, non-finite poses), counted.
-  EventVector usable;
-  usable.reserve(events.size());
-  for (const PixelEvent& e : events) {
-    if (!validPixel(camera, e)) {
-      ++kf.counts.skipped_outside;
-    } else if (!T_kf_cam.covers(e.t_ns)) {
-      ++kf.counts.skipped_time;
-    } else if (!finitePose(T_kf_cam.T_Cr_Ct(e.t_ns))) {
-      ++kf.counts.skipped_nan;
-    } else {
-      usable.push_back(e);
-      kf.t_end_ns = std::max(kf.t_end_ns, e.t_ns);
-    }
-  }
-  VweObjective objective(camera, &volume);
-  const VweEvaluation ev = objective.voteOnly(usable, T_kf_cam);
-  kf.counts.skipped_time += ev.skipped_time;
-  kf.counts.skipped_behind = ev.skipped_behind;
-  kf.counts.voted = ev.rays;
-  kf.counts.votes = ev.votes;
-  extractKeyframe(volume, options, T_odom_kf, &kf);
-  return kf;
-}
-
 size_t removeRadiusOutliers(std::vector<MapPoint>* points, double radius_m, int min_neighbours) {
   const std::vector<uint8_t> keep = radiusInlierMask(*points, radius_m, min_neighbours);
   size_t n = 0;
@@ -378,44 +354,25 @@ void EmvsMapper::closeKeyframe(EmvsKeyframe* kf) {
   const PoseSlice& ref = kf_slices_.empty() ? PoseSlice{t_kf_ns_, T_kf_odom_.inverse()}
                                             : kf_slices_[kf_events_[kf_events_.size() / 2].slice];
   const Pose3 T_odom_ref = ref.T_odom_cam, T_ref_odom = ref.T_odom_cam.inverse();
-  struct SliceRays {
-    Eigen::Matrix3f R;
-    Eigen::Vector3f o;
-    float rho_max;
-  };
-  std::vector<SliceRays> slices(kf_slices_.size());
+  std::vector<RayPose<float>> poses(kf_slices_.size());
   for (size_t k = 0; k < kf_slices_.size(); ++k) {
     const Pose3 T_ref_cam = T_ref_odom * kf_slices_[k].T_odom_cam;
-    slices[k].R = T_ref_cam.linear().cast<float>();
-    slices[k].o = T_ref_cam.translation().cast<float>();
-    const double oz = T_ref_cam.translation().z();
-    slices[k].rho_max = oz > 0 ? float(1.0 / oz) : std::numeric_limits<float>::infinity();
+    poses[k] =
+        RayPose<float>(T_ref_cam.linear().cast<float>(), T_ref_cam.translation().cast<float>());
   }
-  // Rays (see makeVolumeRay), in float, split over the threads; a ray pointing away from the
-  // reference view is marked with a NaN and dropped below.
+  // Rays in float, split over the threads; a ray pointing away from the reference view is
+  // marked with a NaN and dropped below.
   const size_t n = kf_events_.size();
   rays_.resize(n);
-  const float fx = float(volume_->fx()), fy = float(volume_->fy()), cx = float(volume_->cx()),
-              cy = float(volume_->cy());
+  const VolumeRayBuilder<float> make_ray(*volume_);
   const int chunks = 4 * pool_.numThreads();
   pool_.run(chunks, [&](int chunk, int) {
     const size_t begin = n * size_t(chunk) / size_t(chunks),
                  end = n * size_t(chunk + 1) / size_t(chunks);
     for (size_t i = begin; i < end; ++i) {
       const KeyframeEvent& e = kf_events_[i];
-      const SliceRays& sl = slices[e.slice];
-      const Eigen::Vector3f d = sl.R * camera_.bearing(e.x, e.y);
-      VolumeRay& ray = rays_[i];
-      if (!(d.z() > 1e-6f)) {
-        ray.u0 = std::numeric_limits<float>::quiet_NaN();
-        continue;
-      }
-      const float ax = d.x() / d.z(), ay = d.y() / d.z();
-      ray.u0 = fx * ax + cx;
-      ray.v0 = fy * ay + cy;
-      ray.du = fx * (sl.o.x() - sl.o.z() * ax);
-      ray.dv = fy * (sl.o.y() - sl.o.z() * ay);
-      ray.rho_max = sl.rho_max;
+      if (!make_ray(poses[e.slice], camera_.bearing(e.x, e.y), &rays_[i]))
+        rays_[i].u0 = std::numeric_limits<float>::quiet_NaN();
     }
   });
   size_t kept = 0;
@@ -439,21 +396,22 @@ std::vector<EmvsKeyframe> EmvsMapper::process(const PoseFunction& T_odom_cam, in
   std::vector<EmvsKeyframe> done;
   std::vector<Pose3> poses;
   std::vector<uint8_t> status;  // 0 ok, 1 not covered, 2 not finite
+  const int64_t slice_ns = secToNs(options_.volume.pose_slice_s);
   while (!pending_.empty() && pending_.front().t_ns <= t_final_ns) {
-    // One slice of events sharing a pose (the pose at its middle) when the trajectory covers
-    // both ends; otherwise a pose per event, so coverage is judged per event.
-    const int64_t t_a = pending_.front().t_ns;
+    // The events of one pose slice (poseSliceTime, the VWE's rule) share the pose at its middle;
+    // where the trajectory does not cover the middle, each event uses its own pose. Coverage
+    // is judged per event unless the trajectory covers both ends of the slice's events.
+    const int64_t t_slice = poseSliceTime(pending_.front().t_ns, slice_ns);
     size_t n = 0;
     while (n < pending_.size() && pending_[n].t_ns <= t_final_ns &&
-           pending_[n].t_ns - t_a <= options_.pose_slice_ns)
+           poseSliceTime(pending_[n].t_ns, slice_ns) == t_slice)
       ++n;
-    const int64_t t_b = pending_[n - 1].t_ns;
-    Pose3 T_a, T_b, T_shared = Pose3::Identity();
-    const bool shared =
-        T_odom_cam(t_a, &T_a) && T_odom_cam(t_b, &T_b) && finitePose(T_a) && finitePose(T_b);
-    if (shared) {
-      T_shared = t_a == t_b ? T_a : interpolatePose(T_a, T_b, 0.5);
-    } else {
+    const int64_t t_a = pending_.front().t_ns, t_b = pending_[n - 1].t_ns;
+    Pose3 T_a, T_b, T_slice = Pose3::Identity();
+    const bool middle = T_odom_cam(t_slice, &T_slice) && finitePose(T_slice);
+    const bool covered = middle && T_odom_cam(t_a, &T_a) && T_odom_cam(t_b, &T_b) &&
+                         finitePose(T_a) && finitePose(T_b);
+    if (!covered) {
       poses.assign(n, Pose3::Identity());
       status.assign(n, 0);
       for (size_t i = 0; i < n; ++i) {
@@ -463,8 +421,7 @@ std::vector<EmvsKeyframe> EmvsMapper::process(const PoseFunction& T_odom_cam, in
           status[i] = 2;
       }
     }
-    const int64_t t_shared = t_a + (t_b - t_a) / 2;
-    bool checked = false;  // keyframe criteria judged for this shared slice
+    bool checked = false;  // keyframe criteria judged for the slice's pose
     for (size_t i = 0; i < n; ++i) {
       const PixelEvent& e = pending_[i];
       if (!validPixel(camera_, e)) {
@@ -472,13 +429,13 @@ std::vector<EmvsKeyframe> EmvsMapper::process(const PoseFunction& T_odom_cam, in
         ++counts_.skipped_outside;
         continue;
       }
-      if (!shared && status[i] != 0) {
+      if (!covered && status[i] != 0) {
         ++counts_.events;
         ++(status[i] == 1 ? counts_.skipped_time : counts_.skipped_nan);
         continue;
       }
-      const Pose3& T_odom_cam_i = shared ? T_shared : poses[i];
-      if (!shared || !checked) {
+      const Pose3& T_odom_cam_i = middle ? T_slice : poses[i];
+      if (!middle || !checked) {
         if (active_) {
           const Pose3 T_kf_cam = T_kf_odom_ * T_odom_cam_i;
           const bool moved = T_kf_cam.translation().norm() > options_.kf_distance_m;
@@ -497,7 +454,7 @@ std::vector<EmvsKeyframe> EmvsMapper::process(const PoseFunction& T_odom_cam, in
         closeKeyframe(&done.back());
         startKeyframe(e.t_ns, T_odom_cam_i);
       }
-      addToKeyframe(e, shared ? t_shared : e.t_ns, T_odom_cam_i);
+      addToKeyframe(e, middle ? t_slice : e.t_ns, T_odom_cam_i);
     }
     pending_.erase(pending_.begin(), pending_.begin() + long(n));
   }
@@ -597,55 +554,6 @@ cv::Mat colorizeDepth(const cv::Mat& depth_m, double z_min_m, double z_max_m) {
   cv::applyColorMap(scaled, out, cv::COLORMAP_JET);
   out.setTo(cv::Scalar(0, 0, 0), depth_m <= 0.0f);
   return out;
-}
-
-// ---------------------------------------------------------------------------------------------
-// PLY
-
-PlyCloud toPlyCloud(const std::vector<MapPoint>& points) {
-  PlyCloud c;
-  c.xyz.reserve(points.size());
-  c.confidence.reserve(points.size());
-  for (const MapPoint& p : points) {
-    c.xyz.push_back(p.p);
-    c.confidence.push_back(p.confidence);
-  }
-  return c;
-}
-
-namespace {
-void appendFloatLe(std::vector<char>* buf, float f) {
-  uint32_t u;
-  std::memcpy(&u, &f, 4);
-  for (int b = 0; b < 4; ++b) buf->push_back(char((u >> (8 * b)) & 0xff));
-}
-}  // namespace
-
-void writePly(const std::string& path, const PlyCloud& cloud) {
-  const size_t n = cloud.xyz.size();
-  if (!cloud.rgb.empty() && cloud.rgb.size() != n)
-    throw std::invalid_argument("writePly: " + std::to_string(cloud.rgb.size()) + " colours for " +
-                                std::to_string(n) + " points");
-  if (!cloud.confidence.empty() && cloud.confidence.size() != n)
-    throw std::invalid_argument("writePly: " + std::to_string(cloud.confidence.size()) +
-                                " confidences for " + std::to_string(n) + " points");
-  std::ofstream f(path, std::ios::binary);
-  if (!f) throw std::runtime_error("writePly: cannot open " + path);
-  f << "ply\nformat binary_little_endian 1.0\ncomment vwe_vo EMVS map\nelement vertex " << n
-    << "\nproperty float x\nproperty float y\nproperty float z\n";
-  if (!cloud.rgb.empty()) f << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
-  if (!cloud.confidence.empty()) f << "property float confidence\n";
-  f << "end_header\n";
-  std::vector<char> buf;
-  buf.reserve(n * 19);
-  for (size_t i = 0; i < n; ++i) {
-    for (int k = 0; k < 3; ++k) appendFloatLe(&buf, cloud.xyz[i][k]);
-    if (!cloud.rgb.empty())
-      for (int k = 0; k < 3; ++k) buf.push_back(char(cloud.rgb[i][k]));
-    if (!cloud.confidence.empty()) appendFloatLe(&buf, cloud.confidence[i]);
-  }
-  f.write(buf.data(), std::streamsize(buf.size()));
-  if (!f) throw std::runtime_error("writePly: write failed for " + path);
 }
 
 }  // namespace vwe_vo

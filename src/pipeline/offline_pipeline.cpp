@@ -14,6 +14,7 @@
 
 #include "vwe_vo/eval/evaluation.h"
 #include "vwe_vo/io/files.h"
+#include "vwe_vo/io/ply.h"
 
 namespace vwe_vo {
 namespace {
@@ -234,13 +235,7 @@ void OfflinePipeline::startMapping(const std::string& depth_png_dir) {
 void OfflinePipeline::onKeyframes(const std::vector<EmvsKeyframe>& keyframes) {
   for (const EmvsKeyframe& kf : keyframes) {
     map_->insert(kf.points_odom);
-    const EmvsCounts& c = kf.counts;
-    map_counts_.events += c.events, map_counts_.voted += c.voted,
-        map_counts_.skipped_time += c.skipped_time;
-    map_counts_.skipped_nan += c.skipped_nan, map_counts_.skipped_behind += c.skipped_behind;
-    map_counts_.skipped_outside += c.skipped_outside, map_counts_.votes += c.votes,
-        map_counts_.selected += c.selected;
-    map_counts_.outliers += c.outliers, map_counts_.points += c.points;
+    map_counts_ += kf.counts;
     if (!depth_png_dir_.empty()) {
       char name[64];
       std::snprintf(name, sizeof(name), "/depth_%04zu.png", map_keyframes_);

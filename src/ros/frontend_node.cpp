@@ -12,6 +12,7 @@
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/param_loader.h"
 #include "vwe_vo/ros/topics.h"
+#include "vwe_vo/sensor/subsample.h"
 #include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/vwe/vwe_objective.h"
 

@@ -236,13 +236,7 @@ void MappingNode::mapCovered() {
 void MappingNode::handleKeyframe(const EmvsKeyframe& kf) {
   ++keyframes_;
   const EmvsCounts& c = kf.counts;
-  counts_.events += c.events;
-  counts_.voted += c.voted;
-  counts_.skipped_time += c.skipped_time;
-  counts_.skipped_nan += c.skipped_nan;
-  counts_.skipped_behind += c.skipped_behind;
-  counts_.skipped_outside += c.skipped_outside;
-  counts_.points += c.points;
+  counts_ += c;
   if (counts_.skipped_time > reported_skipped_time_) {
     ROS_WARN_THROTTLE(10,
                       "mapping_node: %zu events not covered by the trajectory skipped (%zu so far)",

@@ -30,6 +30,7 @@
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/io/trajectory_io.h"
 #include "vwe_vo/ros/conversions.h"
+#include "vwe_vo/sensor/subsample.h"
 
 namespace {
 

@@ -37,19 +37,6 @@ void VolumeOptions::validate(const std::string& section) const {
   if (!(pose_slice_s >= 0 && pose_slice_s <= 0.01)) fail("pose_slice_s must be in [0, 0.01]");
 }
 
-bool makeVolumeRay(const Vec3& o, const Vec3& d, double fx, double fy, double cx, double cy,
-                   VolumeRay* ray) {
-  if (!(d.z() > 1e-9)) return false;
-  const double ax = d.x() / d.z(), ay = d.y() / d.z();
-  ray->u0 = float(fx * ax + cx);
-  ray->v0 = float(fy * ay + cy);
-  ray->du = float(fx * (o.x() - o.z() * ax));
-  ray->dv = float(fy * (o.y() - o.z() * ay));
-  // lambda = (z - o_z) / d_z > 0  <=>  z > o_z  <=>  rho < 1 / o_z (when o_z > 0)
-  ray->rho_max = o.z() > 0 ? float(1.0 / o.z()) : std::numeric_limits<float>::infinity();
-  return true;
-}
-
 ProjectiveVolume::ProjectiveVolume(const VolumeOptions& options, int sensor_width,
                                    int sensor_height, double fx, double fy, double cx, double cy)
     : options_(options), pool_(options.num_threads) {

@@ -5,45 +5,9 @@
 #include <limits>
 
 #include "vwe_vo/common/validated.h"
+#include "vwe_vo/vwe/ray_builder.h"
 
 namespace vwe_vo {
-
-EventVector subsampleEvents(const EventVector& events, size_t max_events, uint64_t seed) {
-  if (max_events == 0 || events.size() <= max_events) return events;
-  EventVector out;
-  out.reserve(max_events);
-  const double stride = double(events.size()) / double(max_events);
-  // Phase in [0, stride) from a splitmix64 hash of the seed: deterministic, seed-dependent.
-  uint64_t z = seed + 0x9e3779b97f4a7c15ULL;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  z ^= z >> 31;
-  const double phase = double(z >> 11) / double(1ULL << 53) * stride;
-  for (size_t k = 0; k < max_events; ++k) {
-    const size_t i = std::min(events.size() - 1, size_t(phase + double(k) * stride));
-    out.push_back(events[i]);
-  }
-  return out;
-}
-
-EventVector subsampleEventsPerTimeSlice(const EventVector& events, int64_t t0_ns, int64_t t1_ns,
-                                        size_t max_events, int bins, uint64_t seed) {
-  if (bins <= 1 || t1_ns <= t0_ns) return subsampleEvents(events, max_events, seed);
-  EventVector out;
-  out.reserve(max_events);
-  const size_t per_bin = std::max<size_t>(1, max_events / size_t(bins));
-  size_t begin = 0;
-  for (int b = 0; b < bins; ++b) {
-    const int64_t edge = t0_ns + (t1_ns - t0_ns) * (b + 1) / bins;
-    size_t end = begin;
-    while (end < events.size() && (events[end].t_ns < edge || b == bins - 1)) ++end;
-    const EventVector slice(events.begin() + begin, events.begin() + end);
-    const EventVector kept = subsampleEvents(slice, per_bin, seed + uint64_t(b));
-    out.insert(out.end(), kept.begin(), kept.end());
-    begin = end;
-  }
-  return out;
-}
 
 VweObjective::VweObjective(const CameraModel& camera, ProjectiveVolume* volume)
     : camera_(camera), volume_(volume), pool_(volume->options().num_threads) {}
@@ -69,7 +33,8 @@ void VweObjective::buildChunk(const EventVector& events, size_t begin, size_t en
   out->jac_value.clear();
   out->times.clear();
   out->skipped_time = out->skipped_behind = 0;
-  const double fx = volume_->fx(), fy = volume_->fy(), cx = volume_->cx(), cy = volume_->cy();
+  const double fx = volume_->fx(), fy = volume_->fy();
+  const VolumeRayBuilder<double> make_ray(*volume_);
   const bool planar = with_jacobian && model.hasPlanarJacobian();
   PoseJacobian& pj = out->pose_jac;
   PlanarLocalJacobian lj;
@@ -77,28 +42,26 @@ void VweObjective::buildChunk(const EventVector& events, size_t begin, size_t en
   // result does not depend on how the events are chunked.
   const int64_t slice = secToNs(volume_->options().pose_slice_s);
   int64_t pose_t = std::numeric_limits<int64_t>::min();
-  Pose3 T = Pose3::Identity();
+  RayPose<double> pose;
   for (size_t k = begin; k < end; ++k) {
     const PixelEvent& e = events[k];
     if (!model.covers(e.t_ns)) {
       ++out->skipped_time;
       continue;
     }
-    int64_t t = e.t_ns;
-    if (slice > 1) {
-      const int64_t start = t - ((t % slice) + slice) % slice;
-      t = start + slice / 2;
-      if (!model.covers(t)) t = e.t_ns;  // the model ends inside this slice
-    }
+    int64_t t = poseSliceTime(e.t_ns, slice);
+    if (!model.covers(t)) t = e.t_ns;  // the model ends inside this slice
     if (t != pose_t) {
-      T = planar ? model.T_Cr_CtPlanar(t, &lj) : model.T_Cr_Ct(t, with_jacobian ? &pj : nullptr);
+      const Pose3 T =
+          planar ? model.T_Cr_CtPlanar(t, &lj) : model.T_Cr_Ct(t, with_jacobian ? &pj : nullptr);
+      pose = RayPose<double>(T.linear(), T.translation());
       pose_t = t;
     }
     const Vec3 f = camera_.bearing(e.x, e.y).cast<double>();
-    const Vec3 o = T.translation();
-    const Vec3 d = T.linear() * f;
+    const Vec3& o = pose.o;
+    Vec3 d;
     VolumeRay ray;
-    if (!makeVolumeRay(o, d, fx, fy, cx, cy, &ray)) {
+    if (!make_ray(pose, f, &ray, &d)) {
       ++out->skipped_behind;
       continue;
     }

@@ -15,6 +15,7 @@
 #include "vwe_vo/backend/backend.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/pipeline/offline_pipeline.h"
+#include "vwe_vo/sensor/subsample.h"
 
 using namespace vwe_vo;
 

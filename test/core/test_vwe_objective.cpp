@@ -6,6 +6,8 @@
 #include <random>
 
 #include "../common/synthetic_events.h"
+#include "vwe_vo/sensor/subsample.h"
+#include "vwe_vo/vwe/ray_builder.h"
 #include "vwe_vo/vwe/vwe_objective.h"
 
 using namespace vwe_vo;
@@ -69,6 +71,21 @@ double bruteForceContrast(const ProjectiveVolume& volume, Contrast contrast, dou
   *sum = s;
   const double nv = double(volume.numVoxels());
   return contrast == Contrast::kVariance ? q / nv - (s / nv) * (s / nv) : q / s;
+}
+
+TEST(VweObjective, PoseSlicesLieOnAFixedGridOfAbsoluteTimes) {
+  // Slices [k s, (k + 1) s) share the time k s + s / 2, for negative times too.
+  const int64_t s = 500000;
+  EXPECT_EQ(poseSliceTime(0, s), 250000);
+  EXPECT_EQ(poseSliceTime(499999, s), 250000);
+  EXPECT_EQ(poseSliceTime(500000, s), 750000);
+  EXPECT_EQ(poseSliceTime(secToNs(3.0) + 123, s), secToNs(3.0) + 250000);
+  EXPECT_EQ(poseSliceTime(-1, s), -250000);
+  EXPECT_EQ(poseSliceTime(-500000, s), -250000);
+  EXPECT_EQ(poseSliceTime(-500001, s), -750000);
+  // No slices: each event's own time.
+  EXPECT_EQ(poseSliceTime(123456789, 0), 123456789);
+  EXPECT_EQ(poseSliceTime(123456789, 1), 123456789);
 }
 
 }  // namespace

@@ -27,9 +27,9 @@ struct OneSidedOptions {
   void validate(const VolumeOptions& normal, const std::string& section) const;
 };
 
-/// Pixel (undistorted pinhole) where the direction straight ahead of base_link (its x axis)
-/// appears: the focus of expansion of straight driving, on the horizon. False if the camera
-/// does not look forward.
+/// Raw (distorted) sensor pixel, as the events', where the direction straight ahead of
+/// base_link (its x axis) appears: the focus of expansion of straight driving, on the horizon.
+/// False if the camera does not look forward.
 bool forwardPixel(const CameraModel& camera, const Pose3& T_base_cam, Vec2* pixel);
 /// Events above the horizon row (y < pixel.y) on the side of pixel.x with fewer of them, divided
 /// by those on the other side: 1 balanced, 0 all on one side; 1 if none is above the horizon.

@@ -3,10 +3,9 @@
 // voting kernel as the VWE); depth = argmax along each pixel's depth ray refined in inverse
 // depth, kept where the confidence passes an adaptive Gaussian threshold; a median filter and a
 // radius outlier removal clean the semi-dense map. GlobalMap fuses keyframe clouds into a
-// bounded voxel-downsampled cloud; writePly saves clouds for common viewers.
+// bounded voxel-downsampled cloud (io/ply.h writes it).
 #pragma once
 
-#include <array>
 #include <cstdint>
 #include <deque>
 #include <functional>
@@ -27,7 +26,8 @@ namespace vwe_vo {
 
 struct EmvsOptions {
   EmvsOptions();
-  VolumeOptions volume;            // the DSI (defaults: full resolution, 100 planes, 0.5-8 m)
+  VolumeOptions volume;            // the DSI (defaults: full resolution, 100 planes, 0.5-8 m) and
+                                   // its pose slices (volume.pose_slice_s, as the VWE)
   int adaptive_kernel_size = 5;    // adaptive threshold: Gaussian window [grid px], odd >= 3
   double adaptive_sigma_px = 0.0;  // its sigma [grid px]; 0: from the window as in OpenCV
   double adaptive_c =
@@ -48,8 +48,6 @@ struct EmvsOptions {
   double kf_distance_m = 0.3;      // close a keyframe after this much translation [m]
   double kf_rotation_deg = 15.0;   // ... or this much rotation [deg]
   size_t max_events_per_keyframe = 2000000;  // ... or this many events (bounds time and memory)
-  int64_t pose_slice_ns =
-      500000;  // events within this span share one pose [ns]; 0 = a pose per event
   size_t max_pending_events =
       8000000;  // events waiting for the trajectory; the oldest are dropped beyond
   double max_event_rate_hz = 0.0;  // vote at most this many events per second (evenly over time,
@@ -75,6 +73,8 @@ struct EmvsCounts {
   size_t selected = 0;         // pixels passing the thresholds (before outlier removal)
   size_t outliers = 0;         // points removed by the radius outlier removal
   size_t points = 0;           // points in the result
+  /// Adds every count of `other` (totals over keyframes).
+  EmvsCounts& operator+=(const EmvsCounts& other);
 };
 
 /// The depth of one DSI: maps at the grid resolution of the volume (float, 0 = none).
@@ -105,19 +105,13 @@ struct EmvsKeyframe {
 void extractKeyframe(const ProjectiveVolume& volume, const EmvsOptions& options,
                      const Pose3& T_odom_cam, EmvsKeyframe* keyframe);
 
-/// One-shot EMVS for a batch of events: the DSI is VweObjective::voteOnly with `T_kf_cam`
-/// giving camera poses relative to the keyframe (its reference time). Events the model does not
-/// cover are skipped and counted. T_odom_kf places the cloud in odom.
-EmvsKeyframe mapKeyframe(const EventVector& events, const TrajectoryModel& T_kf_cam,
-                         const Pose3& T_odom_kf, const CameraModel& camera,
-                         const EmvsOptions& options);
-
 /// Radius outlier removal with a voxel hash of cell = radius: keeps points with at least
 /// min_neighbours others within radius_m. Cost O(points x neighbours). Returns how many it removed.
 size_t removeRadiusOutliers(std::vector<MapPoint>* points, double radius_m, int min_neighbours);
 
-/// The incremental mapper: events are buffered until the trajectory covers them, then gathered
-/// (with the pose of their time slice) into the current keyframe; a keyframe is closed when the
+/// The incremental mapper, the one EMVS entry point: events are buffered until the trajectory
+/// covers them, then gathered (with the pose of their slice, poseSliceTime of
+/// volume.pose_slice_s) into the current keyframe; a keyframe is closed when the
 /// camera has moved kf_distance_m or turned kf_rotation_deg since its first event, or it holds
 /// max_events_per_keyframe events. Closing builds the DSI with its reference view at the
 /// keyframe's median event (half the events on each side: the rays spread symmetrically around
@@ -133,7 +127,8 @@ class EmvsMapper {
   /// Buffers events (time-ordered; events older than the newest held are dropped and counted).
   void addEvents(const EventVector& events);
   /// Gathers every buffered event with t <= t_final_ns (the time up to which the trajectory is
-  /// final): events it does not cover are skipped and counted, later events stay buffered.
+  /// final; the pose of a slice is asked at its middle, up to half a slice later): events it
+  /// does not cover are skipped and counted, later events stay buffered.
   /// Returns the keyframes closed meanwhile.
   std::vector<EmvsKeyframe> process(const PoseFunction& T_odom_cam, int64_t t_final_ns);
   /// Closes the current keyframe (end of data); false if there is none.
@@ -219,17 +214,5 @@ class GlobalMap {
 
 /// Colour-coded depth (BGR8, inverse-depth jet: near red, far blue; black where depth is 0).
 cv::Mat colorizeDepth(const cv::Mat& depth_m, double z_min_m, double z_max_m);
-
-/// A cloud for writePly: rgb and confidence are optional (empty or one per point).
-struct PlyCloud {
-  std::vector<Eigen::Vector3f> xyz;
-  std::vector<std::array<uint8_t, 3>> rgb;
-  std::vector<float> confidence;
-};
-PlyCloud toPlyCloud(const std::vector<MapPoint>& points);
-
-/// Binary little-endian PLY: x y z float, then red green blue uchar and/or confidence float.
-/// Throws std::invalid_argument on size mismatch and std::runtime_error naming the file.
-void writePly(const std::string& path, const PlyCloud& cloud);
 
 }  // namespace vwe_vo

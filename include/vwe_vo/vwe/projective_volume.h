@@ -35,10 +35,10 @@ struct VolumeOptions {
   double z_min_m = 0.4;   // nearest plane [m]
   double z_max_m = 12.0;  // farthest plane [m]
   int num_threads = 2;    // threads for voting (split over planes)
-  // The VWE objective (not the EMVS DSI) evaluates the trajectory, pose and Jacobian, once per
-  // slice of this many seconds, at its middle, for all events in it (0: at each event's time).
-  // 0.5 ms moves the camera 3 mm at 6 m/s and turns it 0.5 mrad at 1 rad/s (0.1 px), and saves
-  // most of the per-event B-spline work.
+  // The events of a slice of this many seconds (a fixed grid of absolute times) share the pose
+  // at its middle (poseSliceTime in vwe/ray_builder.h), in the VWE and the EMVS DSI alike (0: a
+  // pose per event). 0.5 ms moves the camera 3 mm at 6 m/s and turns it 0.5 mrad at 1 rad/s
+  // (0.1 px), and saves most of the per-event trajectory work.
   double pose_slice_s = 0.0005;
   /// Throws std::invalid_argument naming the field by its key, section + "." + field.
   void validate(const std::string& section = "volume") const;
@@ -46,15 +46,11 @@ struct VolumeOptions {
 
 /// A ray in the reference camera frame as the voting kernel needs it: its pixel in the virtual
 /// pinhole at inverse depth rho is (u0 + rho * du, v0 + rho * dv); valid for rho < rho_max.
+/// Made from events and poses by VolumeRayBuilder (vwe/ray_builder.h).
 struct VolumeRay {
   float u0, v0, du, dv;
   float rho_max;
 };
-
-/// Converts origin o and direction d (reference camera frame, d_z > 0) to a VolumeRay for the
-/// virtual pinhole (fx, fy, cx, cy). Returns false if d_z is not positive.
-bool makeVolumeRay(const Vec3& o, const Vec3& d, double fx, double fy, double cx, double cy,
-                   VolumeRay* ray);
 
 class ProjectiveVolume {
  public:
