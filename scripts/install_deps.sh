@@ -13,7 +13,7 @@ if [ "$(id -u)" != 0 ]; then
 fi
 
 common_pkgs=(libceres-dev libopencv-dev libeigen3-dev libgtest-dev libbenchmark-dev
-             python3-matplotlib python3-numpy python3-yaml zlib1g-dev libyaml-cpp-dev nlohmann-json3-dev xvfb imagemagick clang-format)
+             python3-matplotlib python3-numpy python3-yaml zlib1g-dev libyaml-cpp-dev nlohmann-json3-dev xvfb imagemagick clang-format clang)
 
 if [ -f /opt/ros/noetic/setup.bash ]; then
   log "found /opt/ros/noetic: using it (Ubuntu 20.04 + Noetic)"
@@ -27,7 +27,7 @@ else
         libsensor-msgs-dev libnav-msgs-dev libgeometry-msgs-dev libvisualization-msgs-dev
         libstd-msgs-dev ros-message-generation python3-rostest python3-rosbag rosbash
         rviz ros-robot-state-publisher python3-geometry-msgs python3-nav-msgs
-        python3-tf2-ros)
+        python3-tf2-ros libclang-rt-14-dev)
 fi
 
 missing=()

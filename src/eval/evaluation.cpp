@@ -540,10 +540,20 @@ std::vector<WindowYawRate> readArcsCsv(const std::string& path) {
                                std::to_string(header.size()) + " columns, got " +
                                std::to_string(f.size()));
     WindowYawRate w;
+    // Times are int64 nanoseconds: a stamp beyond +-9.2e9 s (or not finite) cannot be held.
+    const auto time = [&](const std::string& text) {
+      const double t_s = std::stod(text);
+      if (!(std::abs(t_s) < 9.2e9))
+        throw std::runtime_error(path + ":" + std::to_string(line_number) + ": time " + text +
+                                 " s is outside the representable range (|t| < 9.2e9 s)");
+      return secToNs(t_s);
+    };
     try {
-      w.t_start_ns = secToNs(std::stod(f[c0]));
-      w.t_end_ns = secToNs(std::stod(f[c1]));
+      w.t_start_ns = time(f[c0]);
+      w.t_end_ns = time(f[c1]);
       w.omega_rad_s = std::stod(f[cw]);
+    } catch (const std::runtime_error&) {
+      throw;
     } catch (const std::exception&) {
       throw std::runtime_error(path + ":" + std::to_string(line_number) +
                                ": malformed number in '" + line + "'");

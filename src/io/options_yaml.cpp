@@ -143,7 +143,6 @@ void fields(Archive& a, FrontendOptions* o) {
   a("split_omega_change_rad_s", &o->split_omega_change_rad_s);
   a("use_gyro_prior", &o->use_gyro_prior);
   a("gyro_prior_half_range_rad_s", &o->gyro_prior_half_range_rad_s);
-  a("max_backwards_jump_s", &o->max_backwards_jump_s);
   a("seed", &o->seed);
 }
 
@@ -168,9 +167,15 @@ void fields(Archive& a, BackendOptions* o) {
   a("speed_prior_weight", &o->speed_prior_weight);
   a("deformation_weight", &o->deformation_weight);
   a("arc_rate_prior_weight", &o->arc_rate_prior_weight);
-  a("max_backwards_jump_s", &o->max_backwards_jump_s);
   a("output_rate_hz", &o->output_rate_hz);
   a("seed", &o->seed);
+}
+
+template <typename Archive>
+void fields(Archive& a, TimestampPolicyOptions* o) {
+  a("max_backward_jump_s", &o->max_backward_jump_s);
+  a("max_gap_s", &o->max_gap_s);
+  a("warn_interval_s", &o->warn_interval_s);
 }
 
 template <typename Archive>
@@ -257,6 +262,11 @@ void loadOptions(const YAML::Node& node, const std::string& section, BackendOpti
   load(node, section, o, warnings);
 }
 
+void loadOptions(const YAML::Node& node, const std::string& section, TimestampPolicyOptions* o,
+                 std::vector<std::string>* warnings) {
+  load(node, section, o, warnings);
+}
+
 void loadOptions(const YAML::Node& node, const std::string& section, EmvsOptions* o,
                  GlobalMapOptions* global_map, std::vector<std::string>* warnings) {
   Reader r(node, section, section, warnings);
@@ -281,6 +291,7 @@ YAML::Node optionsToYaml(const PipelineConfig& cfg) {
   mount["translation"].SetStyle(YAML::EmitterStyle::Flow);
   mount["quaternion_xyzw"].SetStyle(YAML::EmitterStyle::Flow);
   root["T_base_cam"] = mount;
+  emit(&root, "input", cfg.input);
   emit(&root, "frontend", cfg.frontend);
   emit(&root, "backend", cfg.backend);
   EmvsOptions mapping = cfg.mapping;
@@ -322,6 +333,7 @@ PipelineConfig loadPipelineConfig(const std::string& path,
     cfg.T_base_cam = loadTBaseCam(root, path, &cfg.warnings);
     std::vector<std::string> warnings;
     try {
+      loadOptions(root, "input", &cfg.input, &warnings);
       loadOptions(root, "frontend", &cfg.frontend, &warnings);
       loadOptions(root, "backend", &cfg.backend, &warnings);
       loadOptions(root, "mapping", &cfg.mapping, &cfg.global_map, &warnings);
@@ -331,6 +343,10 @@ PipelineConfig loadPipelineConfig(const std::string& path,
     }
     for (const std::string& w : warnings) cfg.warnings.push_back(path + ": " + w);
   }
+  // One timestamp rule: the stages' own guards (a second line behind the input's policy) agree with
+  // it.
+  cfg.frontend.max_backwards_jump_s = cfg.input.max_backward_jump_s;
+  cfg.backend.max_backwards_jump_s = cfg.input.max_backward_jump_s;
   // The baseline drives at the front-end's speed so that both share one scale source.
   cfg.baseline.nominal_speed_mps = cfg.frontend.nominal_speed_mps;
   cfg.camera = loadCameraCalibrationYaml(calib);

@@ -30,12 +30,15 @@ constexpr size_t kMaxQueuedEvents = 4000000;
 
 OfflinePipeline::OfflinePipeline(const PipelineConfig& config)
     : config_(config),
+      input_(config.input),
       camera_(config.camera),
       frontend_(config.frontend, camera_, config.T_base_cam) {
   if (config.frontend_only) return;
   backend_ = std::make_unique<Backend>(config.backend, camera_, config.T_base_cam);
   BackendDriverOptions driver_options;
   driver_options.odom_rate_hz = config.backend.output_rate_hz;
+  // The input policy resets on gaps first; the driver's own rule is its second line (0: never).
+  if (config.input.max_gap_s > 0) driver_options.max_gap_s = config.input.max_gap_s;
   BackendDriver::Callbacks callbacks;
   callbacks.odometry = [this](int64_t t_ns, const Pose3& T, double, double) {
     odometry_trajectory_.push_back({t_ns, T});
@@ -63,6 +66,7 @@ OfflinePipeline::~OfflinePipeline() {
 
 void OfflinePipeline::runBackend(const BackendJob& job) {
   const auto t0 = Clock::now();
+  if (job.reset) driver_->reset("the input reset: " + job.reset_why);
   driver_->addEvents(job.events);
   // The job's arcs are one batch (BackendDriver's processing rule).
   const int64_t newest_pending = job.arcs.empty() ? -1 : job.arcs.back().t_end_ns;
@@ -169,7 +173,14 @@ void OfflinePipeline::followBackend() {
   follower_.follow(*spline, t_last_, &frontend_);
 }
 
-void OfflinePipeline::addEvents(const EventVector& events) {
+void OfflinePipeline::addEvents(const EventVector& raw) {
+  // A reset hands on at least the event it happened at, so its job reaches the back-end.
+  const bool reset = input_.process(raw, &input_events_) == TimestampAction::kReset;
+  const EventVector& events = input_events_;
+  if (reset) {
+    frontend_.reset();
+    if (!events.empty()) follower_.reset(events.front().t_ns);
+  }
   if (events.empty()) return;
   if (t_first_ < 0) {
     t_first_ = events.front().t_ns;
@@ -189,6 +200,7 @@ void OfflinePipeline::addEvents(const EventVector& events) {
   if (!backend_) return;
   job.events = events;
   const bool follow = follower_.changesArcs() && !job.arcs.empty();
+  if (reset) job.reset = true, job.reset_why = input_.lastEvent();
   submitBackend(std::move(job));
   if (follow) followBackend();
 }
@@ -417,6 +429,18 @@ nlohmann::json OfflinePipeline::report() const {
         {"frames_lost", b.lost},
         {"tracked_fraction", span > 0 ? covered / span : 0.0}};
   }
+  const TimestampPolicyStats& in = input_.stats();
+  j["input"] = {{"packets", in.packets},
+                {"backward_jumps", in.backward_jumps},
+                {"events_absorbed", in.events_absorbed},
+                {"largest_backward_jump_s", in.largest_backward_jump_s},
+                {"resets", in.resets},
+                {"resets_backward_jump", in.resets_backward},
+                {"resets_gap", in.resets_gap},
+                {"events_dropped_at_reset", in.events_dropped_at_reset},
+                {"largest_gap_s", in.largest_gap_s},
+                {"max_backward_jump_s", config_.input.max_backward_jump_s},
+                {"max_gap_s", config_.input.max_gap_s}};
   j["dropped"] = {{"events_outside_sensor", st.events_outside},
                   {"events_out_of_order", st.events_out_of_order},
                   {"resets", st.resets}};
@@ -437,7 +461,13 @@ void OfflinePipeline::writeOutputs(const std::string& out_dir, const nlohmann::j
   if (map_) writePly(out_dir + "/map.ply", toPlyCloud(map_->points()));
   if (baseline_) writeTum(out_dir + "/baseline.tum", baseline_->trajectory());
   nlohmann::json j = report();
-  for (auto it = extra.begin(); it != extra.end(); ++it) j[it.key()] = it.value();
+  for (auto it = extra.begin(); it != extra.end(); ++it) {
+    if (j.contains(it.key()) && j[it.key()].is_object() && it.value().is_object())
+      j[it.key()].update(
+          it.value());  // the caller's "input" (bag, packets) joins the policy's counts
+    else
+      j[it.key()] = it.value();
+  }
   std::ofstream(out_dir + "/report.json") << j.dump(2) << "\n";
 }
 

@@ -7,12 +7,14 @@
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 #include <sys/stat.h>
+#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -54,6 +56,13 @@ const char* kUsage =
     "speed\n"
     "  after each refinement unless --use-odom gives it; --no-follow-backend keeps its nominal "
     "speed.\n"
+    "  A bag cut short (a killed `rosbag record`, FILE.bag.active, no index) is reindexed into a\n"
+    "  temporary copy with `rosbag reindex` and read up to its last complete chunk (a warning "
+    "says\n"
+    "  how many seconds that recovered). Event timestamps that jump back up to\n"
+    "  input.max_backward_jump_s are dropped and counted (report.json \"input\"), larger jumps\n"
+    "  and gaps longer than input.max_gap_s reset; both are warned about on the terminal.\n"
+    "  No events at all (an empty events.txt, no events topic, --start past the end) is an error.\n"
     "  An ECD folder holds events.txt or events.txt.gz, calib.txt and optionally\n"
     "  extrinsics.txt (T_base_cam, overrides the config).\n"
     "  --baseline: also runs the frame-based baseline (KLT + 1-point Ackermann RANSAC) on the APS\n"
@@ -111,6 +120,90 @@ size_t feedEcdFrames(const std::string& dir, vwe_vo::OfflinePipeline* pipeline) 
   }
   if (n == 0) throw std::runtime_error("--baseline: " + list + " lists no frames");
   return n;
+}
+
+/// A bag to read: the file itself, or, for one cut short, a reindexed temporary copy (removed
+/// when this goes out of scope).
+class BagFile {
+ public:
+  explicit BagFile(const std::string& path) : path_(path) {
+    if (!vwe_vo::fileExists(path)) throw std::runtime_error(path + ": no such file");
+    try {
+      rosbag::Bag bag(path, rosbag::bagmode::Read);
+      return;
+    } catch (const rosbag::BagException& e) {
+      // A killed `rosbag record` leaves no index (BagUnindexedException) or, for a copy cut
+      // short, an index position past the end (BagIOException). Either way: reindex a copy.
+      std::fprintf(
+          stderr,
+          "[vwe_vo_offline] warning: %s cannot be opened as it is (%s): reindexing a copy\n",
+          path.c_str(), e.what());
+    }
+    const char* tmp = std::getenv("TMPDIR");
+    std::string dir = std::string(tmp && *tmp ? tmp : "/tmp") + "/vwe_vo_reindex_XXXXXX";
+    if (!mkdtemp(&dir[0]))
+      throw std::runtime_error("cannot create a temporary folder " + dir + " to reindex " + path);
+    temp_dir_ = dir;
+    try {
+      recover(path);
+    } catch (...) {
+      std::error_code ec;
+      std::filesystem::remove_all(temp_dir_, ec);
+      throw;
+    }
+  }
+  ~BagFile() {
+    std::error_code ec;
+    if (!temp_dir_.empty()) std::filesystem::remove_all(temp_dir_, ec);
+  }
+  BagFile(const BagFile&) = delete;
+  BagFile& operator=(const BagFile&) = delete;
+  const std::string& path() const { return path_; }
+  bool recovered() const { return !temp_dir_.empty(); }
+  double recoveredSeconds() const { return recovered_s_; }
+
+ private:
+  void recover(const std::string& path) {
+    // rosbag's C++ API has no reindex; the python tool (the system python with its ROS modules)
+    // has.
+    if (path.find('\'') != std::string::npos)
+      throw std::runtime_error(path + ": cannot reindex a path with a quote");
+    const std::string log = temp_dir_ + "/reindex.log";
+    const std::string cmd =
+        "PATH=/usr/bin:$PATH /usr/bin/python3 /usr/bin/rosbag reindex -q --output-dir '" +
+        temp_dir_ + "' '" + path + "' > '" + log + "' 2>&1";
+    const int rc = std::system(cmd.c_str());
+    path_ = temp_dir_ + "/" + std::filesystem::path(path).filename().string();
+    if (rc != 0 || !vwe_vo::fileExists(path_)) {
+      std::ifstream in(log);
+      const std::string why((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      throw std::runtime_error(
+          path + ": not a readable bag, and `rosbag reindex` could not recover it: " + why);
+    }
+    rosbag::Bag bag(path_, rosbag::bagmode::Read);
+    rosbag::View all(bag);
+    recovered_s_ = all.size() > 0 ? (all.getEndTime() - all.getBeginTime()).toSec() : 0.0;
+    if (all.size() == 0)
+      throw std::runtime_error(path +
+                               ": cut short before its first complete chunk: no message to read");
+    std::fprintf(stderr,
+                 "[vwe_vo_offline] warning: %s was cut short (no index): %.2f s of data recovered "
+                 "(%u messages, up to its last complete chunk)\n",
+                 path.c_str(), recovered_s_, all.size());
+  }
+  std::string path_, temp_dir_;
+  double recovered_s_ = 0.0;
+};
+
+/// Prints the input's throttled warnings about timestamp jumps.
+void printInputWarning(vwe_vo::OfflinePipeline* pipeline, bool end = false) {
+  const std::string w = end ? pipeline->inputSummary() : pipeline->takeInputWarning();
+  if (w.empty()) return;
+  std::string line;
+  std::istringstream lines(w);
+  while (std::getline(lines, line))
+    std::fprintf(stderr, "\n[vwe_vo_offline] warning: %s", line.c_str());
+  std::fprintf(stderr, "\n");
 }
 
 class Progress {
@@ -221,6 +314,7 @@ int main(int argc, char** argv) {
     Progress progress(quiet);
     nlohmann::json input;
     std::string ecd_events;
+    std::unique_ptr<BagFile> bag_file;
     if (args.count("--ecd")) {
       const std::string dir = args["--ecd"];
       const vwe_vo::EcdCalibration c = vwe_vo::readEcdCalibration(dir + "/calib.txt");
@@ -252,8 +346,12 @@ int main(int argc, char** argv) {
         vwe_vo::EventVector chunk;
         while (reader.read(50000, &chunk) > 0) {
           pipeline.addEvents(chunk);
+          printInputWarning(&pipeline);
           progress.update(pipeline, total);
         }
+        if (pipeline.input().stats().events_in == 0)
+          throw std::runtime_error(ecd_events +
+                                   ": no events (the file is empty or holds only comments)");
       }
     } else {
       const std::string events_topic =
@@ -262,7 +360,8 @@ int main(int argc, char** argv) {
       const std::string imu_topic = args.count("--imu-topic") ? args["--imu-topic"] : "/dvs/imu";
       const std::string image_topic =
           args.count("--image-topic") ? args["--image-topic"] : "/dvs/image_raw";
-      rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
+      bag_file = std::make_unique<BagFile>(args["--bag"]);
+      rosbag::Bag bag(bag_file->path(), rosbag::bagmode::Read);
       std::vector<std::string> topics = {odom_topic, imu_topic};
       if (!baseline_only) topics.push_back(events_topic);
       if (baseline) topics.push_back(image_topic);
@@ -289,6 +388,7 @@ int main(int argc, char** argv) {
                                      std::to_string(cfg.camera.height));
           vwe_vo::eventsFromMsg(*msg, &events, &conv);
           pipeline.addEvents(events);
+          printInputWarning(&pipeline);
           ++packets;
           progress.update(pipeline, total);
         } else if (use_odom && m.getTopic() == odom_topic) {
@@ -307,12 +407,32 @@ int main(int argc, char** argv) {
                {"start_s", start_s},
                {"event_packets", packets},
                {"events_dropped_in_conversion", conv.dropped}};
+      if (bag_file->recovered()) input["recovered_from_unindexed_s"] = bag_file->recoveredSeconds();
+      if (!baseline_only && pipeline.input().stats().events_in == 0) {
+        std::string have;
+        for (const rosbag::ConnectionInfo* c : rosbag::View(bag).getConnections())
+          if (have.find(" " + c->topic + " ") == std::string::npos) have += " " + c->topic + " ";
+        throw std::runtime_error(
+            args["--bag"] + ": no events on " + events_topic +
+            (start_s > 0 ? " after --start " + args["--start"] + " s" : std::string()) + " (" +
+            std::to_string(packets) +
+            " messages; topics in the bag:" + (have.empty() ? std::string(" none") : have) + ")");
+      }
       if (baseline && frames == 0)
         throw std::runtime_error("--baseline: no " + image_topic + " frames in " + args["--bag"]);
     }
     if (baseline) input["frames"] = frames;
     pipeline.finish();
     progress.done();
+    printInputWarning(&pipeline, true);
+    const vwe_vo::TimestampPolicyStats& ts = pipeline.input().stats();
+    if (ts.backward_jumps + ts.resets > 0)
+      std::fprintf(stderr,
+                   "[vwe_vo_offline] input: %zu backward timestamp jumps absorbed (%zu events "
+                   "dropped, largest "
+                   "%.1f ms), %zu resets (%zu jumps back, %zu gaps)\n",
+                   ts.backward_jumps, ts.events_absorbed, ts.largest_backward_jump_s * 1e3,
+                   ts.resets, ts.resets_backward, ts.resets_gap);
     if (map) {
       // Second pass: the mapper needs the final trajectory, and the events are not kept.
       if (!quiet) std::fprintf(stderr, "[vwe_vo_offline] mapping\n");
@@ -324,7 +444,7 @@ int main(int argc, char** argv) {
       } else {
         const std::string events_topic =
             args.count("--events-topic") ? args["--events-topic"] : "/dvs/events";
-        rosbag::Bag bag(args["--bag"], rosbag::bagmode::Read);
+        rosbag::Bag bag(bag_file->path(), rosbag::bagmode::Read);
         const ros::Time begin =
             rosbag::View(bag, rosbag::TopicQuery({events_topic})).getBeginTime() +
             ros::Duration(start_s);

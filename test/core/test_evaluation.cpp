@@ -268,3 +268,17 @@ TEST(Evaluation, JsonHasTheDocumentedKeys) {
   EXPECT_EQ(js["series"]["t_s"].size(), static_cast<size_t>(r.rpe.pairs));
   EXPECT_EQ(js["series"]["rot_err_deg_s"].size(), static_cast<size_t>(r.rpe.pairs));
 }
+
+// Found by fuzz_arcs_csv: a time too large for int64 nanoseconds was converted anyway (UB).
+TEST(Evaluation, ArcsCsvRefusesTimesOutsideTheRepresentableRange) {
+  const std::string path =
+      std::string(VWE_VO_SOURCE_DIR) + "/test/data/fuzz_arcs_time_out_of_range.csv";
+  try {
+    vwe_vo::readArcsCsv(path);
+    FAIL() << "accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("fuzz_arcs_time_out_of_range.csv:3"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("3e19"), std::string::npos) << e.what();
+  }
+}

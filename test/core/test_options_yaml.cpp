@@ -221,6 +221,48 @@ TEST(OptionsYaml, UnknownKeysAreReportedEverywhere) {
   EXPECT_EQ(cfg.baseline.seed, 7u);
 }
 
+// One key for the timestamp rule: input.max_backward_jump_s sets the policy and the stages' guards;
+// the shipped files and the struct defaults agree.
+TEST(OptionsYaml, InputSectionIsTheOneTimestampRule) {
+  const std::string dir = std::string(VWE_VO_SOURCE_DIR) + "/config/";
+  for (const char* name : {"vwe_vo.yaml", "car.yaml"}) {
+    const PipelineConfig shipped = loadPipelineConfig(dir + name);
+    EXPECT_EQ(shipped.input.max_backward_jump_s, TimestampPolicyOptions().max_backward_jump_s)
+        << name;
+    EXPECT_EQ(shipped.input.max_gap_s, TimestampPolicyOptions().max_gap_s) << name;
+    EXPECT_EQ(YAML::LoadFile(dir + name)["input"]["max_backward_jump_s"].as<double>(),
+              shipped.input.max_backward_jump_s)
+        << name;
+  }
+  EXPECT_EQ(FrontendOptions().max_backwards_jump_s, TimestampPolicyOptions().max_backward_jump_s);
+  EXPECT_EQ(BackendOptions().max_backwards_jump_s, TimestampPolicyOptions().max_backward_jump_s);
+  const std::string cal = dir + "davis346.yaml";
+  const PipelineConfig cfg = loadPipelineConfig(writeTemp(
+      "cfg_input.yaml",
+      "camera_calibration: " + cal + "\ninput:\n  max_backward_jump_s: 0.25\n  max_gap_s: 3\n"));
+  EXPECT_TRUE(cfg.warnings.empty());
+  EXPECT_EQ(cfg.input.max_backward_jump_s, 0.25);
+  EXPECT_EQ(cfg.input.max_gap_s, 3.0);
+  EXPECT_EQ(cfg.frontend.max_backwards_jump_s, 0.25);
+  EXPECT_EQ(cfg.backend.max_backwards_jump_s, 0.25);
+  // The stages' keys are gone: a leftover one is reported, not silently used.
+  const PipelineConfig old = loadPipelineConfig(
+      writeTemp("cfg_old_jump.yaml",
+                "camera_calibration: " + cal + "\nfrontend:\n  max_backwards_jump_s: 0.1\n"));
+  ASSERT_EQ(old.warnings.size(), 1u);
+  EXPECT_NE(old.warnings[0].find("frontend.max_backwards_jump_s"), std::string::npos);
+  EXPECT_EQ(old.frontend.max_backwards_jump_s, 0.5);
+  try {
+    loadPipelineConfig(
+        writeTemp("cfg_bad_input.yaml",
+                  "camera_calibration: " + cal + "\ninput:\n  max_backward_jump_s: -1\n"));
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("max_backward_jump_s"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("cfg_bad_input.yaml"), std::string::npos) << e.what();
+  }
+}
+
 TEST(OptionsYaml, VolumeContrastIsReadAndUnknownMeasuresRefused) {
   const std::string cal = std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml";
   const PipelineConfig cfg = loadPipelineConfig(

@@ -55,7 +55,8 @@ struct BackendOptions {
       1.0;  // third-difference prior on the control-point moves (0: off) [1]
   double arc_rate_prior_weight = 1e-2;  // the arcs' mean yaw rates as measurements, per (deg/s)^2
                                         // vs the normalised VWE (0: off) [1]
-  double max_backwards_jump_s = 0.05;   // arcs older than newest - this reset the back-end [s]
+  double max_backwards_jump_s = 0.5;    // arcs older than newest - this reset (YAML:
+                                        // input.max_backward_jump_s) [s]
   double output_rate_hz = 20.0;         // rate of the sampled trajectory (backend.tum) [Hz]
   uint64_t seed = 1;                    // subsampling seed
   /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.

@@ -62,7 +62,8 @@ struct FrontendOptions {
                                              // estimated again as two halves (0: never)
   bool use_gyro_prior = false;               // centre and narrow the scan on the gyro yaw rate
   double gyro_prior_half_range_rad_s = 0.1;  // scan half range around the gyro yaw rate [rad/s]
-  double max_backwards_jump_s = 0.05;        // events older than newest - this trigger a reset [s]
+  double max_backwards_jump_s =
+      0.5;  // events older than newest - this reset (YAML: input.max_backward_jump_s) [s]
   // Windows with structure on one side of the street only (one_sided.h; YAML one_sided_balance,
   // one_sided_z_min_m, one_sided_min_depth_m): the facade's depth is measured at the predicted
   // yaw rate, the gyro's if /dvs/imu is given, else the previous arc's.

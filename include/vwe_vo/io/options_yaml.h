@@ -13,6 +13,7 @@
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/mapping/emvs.h"
 #include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sensor/timestamp_policy.h"
 
 namespace YAML {
 class Node;
@@ -25,6 +26,9 @@ void loadOptions(const YAML::Node& node, const std::string& section, FrontendOpt
                  std::vector<std::string>* warnings);
 void loadOptions(const YAML::Node& node, const std::string& section, BackendOptions* options,
                  std::vector<std::string>* warnings);
+/// The input: section (the timestamp policy, sensor/timestamp_policy.h).
+void loadOptions(const YAML::Node& node, const std::string& section,
+                 TimestampPolicyOptions* options, std::vector<std::string>* warnings);
 /// The mapping: section (EmvsOptions with nested volume: and global_map:).
 void loadOptions(const YAML::Node& node, const std::string& section, EmvsOptions* options,
                  GlobalMapOptions* global_map, std::vector<std::string>* warnings);
@@ -37,6 +41,8 @@ struct PipelineConfig {
   std::string path;          // the file read (empty: defaults)
   CameraCalibration camera;  // from `camera_calibration` (relative to the file's folder)
   Pose3 T_base_cam = Pose3::Identity();
+  TimestampPolicyOptions input;  // backward jumps and gaps of the event stamps; also sets
+                                 // frontend/backend.max_backwards_jump_s (one key)
   FrontendOptions frontend;
   BackendOptions backend;
   EmvsOptions mapping;

@@ -36,8 +36,15 @@ class OfflinePipeline {
   OfflinePipeline(const OfflinePipeline&) = delete;
   OfflinePipeline& operator=(const OfflinePipeline&) = delete;
 
-  /// Feeds time-ordered events (any chunk size) and runs the stages that can run.
+  /// Feeds events (any chunk size, one sensor packet or more) and runs the stages that can run.
+  /// The input's timestamp policy (config.input) comes first: events older than the newest are
+  /// dropped and counted, a large jump back or a long gap resets the front-end and the back-end.
   void addEvents(const EventVector& events);
+  /// The input's throttled warning about timestamp jumps and resets (empty: nothing to say);
+  /// at the end, inputSummary() gives the jumps not yet warned about.
+  std::string takeInputWarning() { return input_.takeWarning(); }
+  std::string inputSummary() { return input_.takeSummary(); }
+  const TimestampPolicy& input() const { return input_; }
   void addOdometry(int64_t t_ns, double v_mps, double yaw_rate_rad_s);
   void addGyro(int64_t t_ns, double yaw_rate_rad_s);
   /// Processes what is left and waits for the back-end. Call once at the end. An error of the
@@ -112,6 +119,8 @@ class OfflinePipeline {
 
  private:
   PipelineConfig config_;
+  TimestampPolicy input_;
+  EventVector input_events_;  // the policy's output for the current chunk
   CameraModel camera_;
   Frontend frontend_;
   std::unique_ptr<Backend> backend_;
@@ -136,6 +145,8 @@ class OfflinePipeline {
     EventVector events;
     std::vector<ArcEstimate> arcs;  // the arcs the front-end made after these events
     bool at_end = false;
+    bool reset = false;  // the input reset (a jump back or a gap): reset the back-end first
+    std::string reset_why;
   };
   void submitBackend(BackendJob job);
   void backendLoop();
