@@ -3,7 +3,9 @@
 # and groundtruth.txt (FORMAT=bag, the default), or also an Event Camera Dataset folder
 # (FORMAT=ecd,bag; text files are large: ~20 bytes per event). A sequence is skipped when its
 # stamp file matches the sequence name, seed, format and generator version.
-# Usage: [FORMAT=bag|ecd|ecd,bag] scripts/make_sequences.sh [NAME...]
+# Usage: [FORMAT=bag|ecd|ecd,bag] [DRIVE=1] scripts/make_sequences.sh [NAME...]
+# Without names: every listed sequence except the continuous-driving ones (street_drive,
+# indoor_drive and their _flat twins, ~1.5 min each to simulate), which DRIVE=1 adds.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 set +u  # ROS's setup scripts read unset variables
@@ -16,7 +18,8 @@ FORMAT="${FORMAT:-bag}"
 OUT="$ROOT/out/sequences"
 if [ ! -x "$BIN" ]; then echo "make_sequences: $BIN not built (run make build)" >&2; exit 1; fi
 if [ $# -eq 0 ]; then
-  mapfile -t names < <("$BIN" --list | tail -n +2 | awk '{print $1}')
+  mapfile -t names < <("$BIN" --list | tail -n +2 | awk '{print $1}' | \
+    if [ "${DRIVE:-0}" = 1 ]; then cat; else grep -v -E '^(street_drive|indoor_drive)(_flat)?$'; fi)
 else
   names=("$@")
 fi

@@ -120,7 +120,13 @@ def break_at_gaps(t, *columns):
 def plot_errors(series, path):
     t, rot, direction = break_at_gaps(series["t_s"], series["rot_err_deg_s"], series["trans_dir_err_deg_s"])
     fig, (ax_rot, ax_dir) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-    ax_rot.plot(t, rot, "-", lw=1)
+    ax_rot.plot(t, rot, "-", lw=1, label="3D rotation")
+    names = series.dtype.names
+    if "yaw_err_deg_s" in names and "tilt_err_deg_s" in names:  # the yaw and tilt parts
+        _, yaw, tilt = break_at_gaps(series["t_s"], series["yaw_err_deg_s"], series["tilt_err_deg_s"])
+        ax_rot.plot(t, yaw, "-", lw=0.8, label="yaw part")
+        ax_rot.plot(t, tilt, "-", lw=0.8, label="tilt part")
+        ax_rot.legend(loc="best", fontsize=8)
     ax_rot.set_ylabel("rotation RPE [deg/s]")
     ax_dir.plot(t, direction, "-", lw=1)  # NaN (standstill) leaves gaps
     ax_dir.set_ylabel("transl. direction RPE [deg/s]")

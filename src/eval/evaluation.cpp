@@ -110,13 +110,22 @@ std::vector<int64_t> sampleTimes(int64_t t0_ns, int64_t last_ns, double step_s) 
   return times;
 }
 
+/// Swing-twist decomposition of R about z: R = swing * twist, twist about z by |yaw| and the
+/// swing about a horizontal axis by tilt (the angle between R e_z and e_z).
+void swingTwist(const Mat3& R, double* yaw_rad, double* tilt_rad) {
+  const Quat q(R);
+  *yaw_rad = std::abs(wrapAngle(2.0 * std::atan2(q.z(), q.w())));
+  const double c = std::sqrt(q.w() * q.w() + q.z() * q.z());
+  *tilt_rad = 2.0 * std::acos(std::min(1.0, c));
+}
+
 RpeResult rpeOver(const Trajectory3& gt, const Trajectory3& est, double delta_s,
                   const EvaluationOptions& options, const Coverage& cov) {
   cov.requireAtLeast(delta_s);
   RpeResult r;
   r.delta_s = delta_s;
   const int64_t delta_ns = secToNs(delta_s);
-  std::vector<double> rot, trans;
+  std::vector<double> rot, trans, yaw, tilt;
   for (int64_t t : sampleTimes(cov.start(), cov.end() - delta_ns, options.pair_step_s)) {
     if (cov.spansGap(t, t + delta_ns)) {
       ++r.untracked_pairs;
@@ -129,8 +138,11 @@ RpeResult rpeOver(const Trajectory3& gt, const Trajectory3& est, double delta_s,
         poseAt(est, t, "estimate").inverse() * poseAt(est, t + delta_ns, "estimate");
     RpePair p;
     p.t_ns = t;
-    p.rot_err_deg_s =
-        rotationAngle(gt_rel.linear().transpose() * est_rel.linear()) * kDegPerRad / delta_s;
+    const Mat3 E = gt_rel.linear().transpose() * est_rel.linear();
+    p.rot_err_deg_s = rotationAngle(E) * kDegPerRad / delta_s;
+    swingTwist(E, &p.yaw_err_deg_s, &p.tilt_err_deg_s);
+    p.yaw_err_deg_s *= kDegPerRad / delta_s;
+    p.tilt_err_deg_s *= kDegPerRad / delta_s;
     if (gt_rel.translation().norm() < options.standstill_threshold_m) {
       ++r.standstill_pairs;
       p.trans_dir_err_deg_s = kNaN;
@@ -143,6 +155,8 @@ RpeResult rpeOver(const Trajectory3& gt, const Trajectory3& est, double delta_s,
           angleBetween(gt_rel.translation(), est_rel.translation()) * kDegPerRad / delta_s;
     }
     rot.push_back(p.rot_err_deg_s);
+    yaw.push_back(p.yaw_err_deg_s);
+    tilt.push_back(p.tilt_err_deg_s);
     trans.push_back(p.trans_dir_err_deg_s);
     r.series.push_back(p);
   }
@@ -154,6 +168,10 @@ RpeResult rpeOver(const Trajectory3& gt, const Trajectory3& est, double delta_s,
         " pairs span estimate gaps longer than " + fmt("%g", options.max_gap_s) + " s)");
   r.rot_rmse_deg_s = rmseOf(rot);
   r.rot_median_deg_s = medianOf(rot);
+  r.yaw_rmse_deg_s = rmseOf(yaw);
+  r.yaw_median_deg_s = medianOf(yaw);
+  r.tilt_rmse_deg_s = rmseOf(tilt);
+  r.tilt_median_deg_s = medianOf(tilt);
   r.trans_dir_rmse_deg_s = rmseOf(trans);
   r.trans_dir_median_deg_s = medianOf(trans);
   return r;
@@ -198,6 +216,10 @@ nlohmann::json rpeJson(const RpeResult& r) {
                       {"est_still_pairs", r.est_still_pairs},
                       {"rot_rmse_deg_s", num(r.rot_rmse_deg_s)},
                       {"rot_median_deg_s", num(r.rot_median_deg_s)},
+                      {"yaw_rmse_deg_s", num(r.yaw_rmse_deg_s)},
+                      {"yaw_median_deg_s", num(r.yaw_median_deg_s)},
+                      {"tilt_rmse_deg_s", num(r.tilt_rmse_deg_s)},
+                      {"tilt_median_deg_s", num(r.tilt_median_deg_s)},
                       {"trans_dir_rmse_deg_s", num(r.trans_dir_rmse_deg_s)},
                       {"trans_dir_median_deg_s", num(r.trans_dir_median_deg_s)}};
   if (!r.error.empty()) j["error"] = r.error;
@@ -224,6 +246,11 @@ void EvaluationOptions::validate() const {
   positive(max_gap_s, "max_gap_s");
   positive(yaw_rate_dt_s, "yaw_rate_dt_s");
   positive(segment_m, "segment_m");
+  positive(lag_max_s, "lag_max_s");
+  positive(lag_resolution_s, "lag_resolution_s");
+  positive(lag_sample_step_s, "lag_sample_step_s");
+  if (lag_resolution_s > lag_max_s)
+    throw std::invalid_argument("EvaluationOptions.lag_resolution_s must not exceed lag_max_s");
   for (double d : extra_deltas_s) positive(d, "extra_deltas_s[]");
 }
 
@@ -270,6 +297,61 @@ RpeResult computeRpe(const Trajectory3& gt, const Trajectory3& est, double delta
   return rpeOver(gt, est, delta_s, options, Coverage(gt, est, options));
 }
 
+double yawRateLag(const Trajectory3& gt, const Trajectory3& est, const EvaluationOptions& options,
+                  int* samples) {
+  options.validate();
+  const Coverage cov(gt, est, options);
+  if (samples) *samples = 0;
+  const int64_t h_ns = secToNs(options.yaw_rate_dt_s);
+  const int64_t res_ns = std::max<int64_t>(1, secToNs(options.lag_resolution_s));
+  const int n_lag = static_cast<int>(std::llround(options.lag_max_s / options.lag_resolution_s));
+  const int64_t max_ns = n_lag * res_ns;
+  // The truth's yaw rate on the lag grid, from the ground truth's start.
+  const int64_t g0 = gt.front().t_ns, g_last = gt.back().t_ns - h_ns;
+  if (g_last <= g0) return kNaN;
+  std::vector<double> w_gt(static_cast<size_t>((g_last - g0) / res_ns) + 1);
+  for (size_t k = 0; k < w_gt.size(); ++k)
+    w_gt[k] = yawRate(gt, g0 + static_cast<int64_t>(k) * res_ns, h_ns, "ground truth");
+  // Estimate samples on the same grid whose truth is available at every shift.
+  const int64_t step_ns =
+      std::max<int64_t>(res_ns, secToNs(options.lag_sample_step_s) / res_ns * res_ns);
+  std::vector<double> w_est;
+  std::vector<size_t> index;
+  const int64_t first =
+      g0 + ((std::max(cov.start(), g0 + max_ns) - g0 + res_ns - 1) / res_ns) * res_ns;
+  for (int64_t t = first; t + h_ns <= cov.end() && t + max_ns <= g_last; t += step_ns) {
+    if (cov.spansGap(t, t + h_ns)) continue;
+    w_est.push_back(yawRate(est, t, h_ns, "estimate"));
+    index.push_back(static_cast<size_t>((t - g0) / res_ns));
+  }
+  if (samples) *samples = static_cast<int>(w_est.size());
+  if (w_est.size() < 10) return kNaN;
+  // A truth without yaw-rate variation has no lag.
+  double mean = 0, var = 0;
+  for (size_t i : index) mean += w_gt[i];
+  mean /= index.size();
+  for (size_t i : index) var += (w_gt[i] - mean) * (w_gt[i] - mean);
+  if (!(var / index.size() > 1e-8)) return kNaN;
+  // Squared error of the estimate to the truth shifted by tau = j * res: w_gt(t - tau).
+  std::vector<double> cost(2 * n_lag + 1);
+  for (int j = -n_lag; j <= n_lag; ++j) {
+    double c = 0;
+    for (size_t i = 0; i < index.size(); ++i) {
+      const double d = w_est[i] - w_gt[static_cast<size_t>(static_cast<int64_t>(index[i]) - j)];
+      c += d * d;
+    }
+    cost[static_cast<size_t>(j + n_lag)] = c;
+  }
+  const size_t best =
+      static_cast<size_t>(std::min_element(cost.begin(), cost.end()) - cost.begin());
+  double shift = static_cast<double>(best);
+  if (best > 0 && best + 1 < cost.size()) {
+    const double a = cost[best - 1], b = cost[best], c = cost[best + 1], curv = a - 2 * b + c;
+    if (curv > 0) shift += 0.5 * (a - c) / curv;
+  }
+  return (shift - n_lag) * nsToSec(res_ns);
+}
+
 EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est,
                           const EvaluationOptions& options) {
   options.validate();
@@ -288,7 +370,7 @@ EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est,
       RpeResult r;
       r.delta_s = d;
       r.rot_rmse_deg_s = r.rot_median_deg_s = r.trans_dir_rmse_deg_s = r.trans_dir_median_deg_s =
-          kNaN;
+          r.yaw_rmse_deg_s = r.yaw_median_deg_s = r.tilt_rmse_deg_s = r.tilt_median_deg_s = kNaN;
       r.error = e.what();
       res.rpe_extra.push_back(r);
     }
@@ -307,6 +389,7 @@ EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est,
     res.yaw_rate_err_deg_s.push_back(err);
   }
   res.yaw_rate_rmse_deg_s = rmseOf(res.yaw_rate_err_deg_s);
+  res.yaw_rate_lag_s = yawRateLag(gt, est, options, &res.yaw_rate_lag_samples);
 
   // ATE at tracked grid times over the overlap.
   std::vector<int64_t> times;
@@ -376,6 +459,11 @@ nlohmann::json toJson(const EvaluationResult& r, bool with_series) {
   for (const RpeResult& e : r.rpe_extra) j[rpeKey(e.delta_s)] = rpeJson(e);
   j["yaw_rate_rmse_deg_s"] = num(r.yaw_rate_rmse_deg_s);
   j["yaw_rate_samples"] = r.yaw_rate_samples;
+  j["yaw_rpe_rmse_deg_s"] = num(r.rpe.yaw_rmse_deg_s);
+  j["yaw_rpe_median_deg_s"] = num(r.rpe.yaw_median_deg_s);
+  j["tilt_rpe_rmse_deg_s"] = num(r.rpe.tilt_rmse_deg_s);
+  j["yaw_rate_lag_s"] = num(r.yaw_rate_lag_s);
+  j["yaw_rate_lag_samples"] = r.yaw_rate_lag_samples;
   j["ate"] = {{"rmse_m", num(r.ate_rmse_m)},
               {"percent_of_path", num(r.ate_percent_of_path)},
               {"scale", num(r.ate_scale)},
@@ -415,12 +503,14 @@ nlohmann::json toJson(const EvaluationResult& r, bool with_series) {
 void writeSeriesCsv(const std::string& path, const EvaluationResult& r) {
   std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "w"), &std::fclose);
   if (!f) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
-  std::fprintf(f.get(), "t_s,rot_err_deg_s,trans_dir_err_deg_s,yaw_rate_err_deg_s\n");
+  std::fprintf(
+      f.get(),
+      "t_s,rot_err_deg_s,trans_dir_err_deg_s,yaw_rate_err_deg_s,yaw_err_deg_s,tilt_err_deg_s\n");
   for (size_t i = 0; i < r.rpe.series.size(); ++i) {
     const RpePair& p = r.rpe.series[i];
     const double yaw = i < r.yaw_rate_err_deg_s.size() ? r.yaw_rate_err_deg_s[i] : kNaN;
-    std::fprintf(f.get(), "%.6f,%.9g,%.9g,%.9g\n", dtSec(p.t_ns, r.gt_start_ns), p.rot_err_deg_s,
-                 p.trans_dir_err_deg_s, yaw);
+    std::fprintf(f.get(), "%.6f,%.9g,%.9g,%.9g,%.9g,%.9g\n", dtSec(p.t_ns, r.gt_start_ns),
+                 p.rot_err_deg_s, p.trans_dir_err_deg_s, yaw, p.yaw_err_deg_s, p.tilt_err_deg_s);
   }
   if (std::ferror(f.get())) throw std::runtime_error("error writing " + path);
 }
@@ -450,6 +540,12 @@ std::string formatTable(const EvaluationResult& r) {
   row("rotation RMSE / median");
   for (const RpeResult* e : rpes) cell(pair2(e->rot_rmse_deg_s, e->rot_median_deg_s) + " deg/s");
   os << "\n";
+  row("  yaw part RMSE / median");
+  for (const RpeResult* e : rpes) cell(pair2(e->yaw_rmse_deg_s, e->yaw_median_deg_s) + " deg/s");
+  os << "\n";
+  row("  tilt part RMSE / median");
+  for (const RpeResult* e : rpes) cell(pair2(e->tilt_rmse_deg_s, e->tilt_median_deg_s) + " deg/s");
+  os << "\n";
   row("trans. dir. RMSE / median");
   for (const RpeResult* e : rpes)
     cell(pair2(e->trans_dir_rmse_deg_s, e->trans_dir_median_deg_s) + " deg/s");
@@ -459,6 +555,9 @@ std::string formatTable(const EvaluationResult& r) {
       os << "  (Delta " << fmt("%g", e->delta_s) << " s: " << e->error << ")\n";
   row("yaw-rate RMSE");
   os << fmt("%.3f", r.yaw_rate_rmse_deg_s) << " deg/s (" << r.yaw_rate_samples << " samples)\n";
+  row("yaw-rate lag");
+  os << fmt("%+.3f", r.yaw_rate_lag_s) << " s (" << r.yaw_rate_lag_samples
+     << " samples; > 0: the estimate is late)\n";
   row("ATE after Sim(3)");
   os << fmt("%.4f", r.ate_rmse_m) << " m = " << fmt("%.3f", r.ate_percent_of_path)
      << " % of path, scale " << fmt("%.5f", r.ate_scale) << "\n";

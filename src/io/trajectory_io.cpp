@@ -218,6 +218,46 @@ void writeEcdCalibration(const std::string& path, const EcdCalibration& c) {
                c.k1, c.k2, c.p1, c.p2, c.k3);
 }
 
+std::vector<ImuSample> readEcdImu(const std::string& path) {
+  LineReader in(path);
+  std::vector<ImuSample> out;
+  std::string line;
+  std::vector<double> v;
+  while (in.next(&line)) {
+    if (isBlankOrComment(line)) continue;
+    if (!parseNumbers(line, 7, 7, &v))
+      in.fail("expected 7 numbers 't ax ay az gx gy gz', got '" + line + "'");
+    ImuSample s;
+    s.t_ns = secToNs(v[0]);
+    s.accel = Vec3(v[1], v[2], v[3]);
+    s.gyro = Vec3(v[4], v[5], v[6]);
+    if (!out.empty() && s.t_ns < out.back().t_ns)
+      in.fail("time goes backwards at " + std::to_string(v[0]) + " s");
+    out.push_back(s);
+  }
+  return out;
+}
+
+EcdImuWriter::EcdImuWriter(const std::string& path)
+    : path_(path), file_(std::fopen(path.c_str(), "w")) {
+  if (!file_) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
+}
+
+EcdImuWriter::~EcdImuWriter() {
+  std::fclose(file_);
+}
+
+void EcdImuWriter::write(const ImuSample& s) {
+  if (std::fprintf(file_, "%.9f %.9g %.9g %.9g %.9g %.9g %.9g\n", nsToSec(s.t_ns), s.accel.x(),
+                   s.accel.y(), s.accel.z(), s.gyro.x(), s.gyro.y(), s.gyro.z()) < 0)
+    throw std::runtime_error("cannot write " + path_ + ": " + std::strerror(errno));
+}
+
+void writeEcdImu(const std::string& path, const std::vector<ImuSample>& samples) {
+  EcdImuWriter w(path);
+  for (const ImuSample& s : samples) w.write(s);
+}
+
 Pose3 readPoseLine(const std::string& path) {
   LineReader in(path);
   std::string line;

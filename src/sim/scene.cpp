@@ -72,20 +72,25 @@ namespace {
 struct PathSamples {
   std::vector<Vec3> xyyaw;
   Eigen::AlignedBox2d bbox;
-  explicit PathSamples(const VehicleTrajectory& path) {
+  std::vector<Vec3> clear;  // samples of a vehicle path that the layout path does not follow
+  explicit PathSamples(const VehicleTrajectory& path, const VehicleTrajectory* vehicle = nullptr) {
     const int64_t step = 20000000;  // 20 ms
     for (int64_t t = 0; t <= path.durationNs(); t += step) xyyaw.push_back(path.planar(t));
     xyyaw.push_back(path.planar(path.durationNs()));
     for (const auto& p : xyyaw) bbox.extend(p.head<2>());
+    if (vehicle)
+      for (int64_t t = 0; t <= vehicle->durationNs(); t += step)
+        clear.push_back(vehicle->planar(t));
   }
-  // Distance from the planar box [mn, mx] to the nearest path sample [m].
+  // Distance from the planar box [mn, mx] to the nearest sample of either path [m].
   double distance(const Eigen::Vector2d& mn, const Eigen::Vector2d& mx) const {
     double best = std::numeric_limits<double>::infinity();
-    for (const auto& p : xyyaw) {
-      const double dx = std::max({mn.x() - p.x(), 0.0, p.x() - mx.x()});
-      const double dy = std::max({mn.y() - p.y(), 0.0, p.y() - mx.y()});
-      best = std::min(best, std::hypot(dx, dy));
-    }
+    for (const auto* samples : {&xyyaw, &clear})
+      for (const auto& p : *samples) {
+        const double dx = std::max({mn.x() - p.x(), 0.0, p.x() - mx.x()});
+        const double dy = std::max({mn.y() - p.y(), 0.0, p.y() - mx.y()});
+        best = std::min(best, std::hypot(dx, dy));
+      }
     return best;
   }
 };
@@ -321,8 +326,9 @@ Scene buildStreet(uint64_t seed, const PathSamples& path) {
 
 }  // namespace
 
-Scene buildScene(const std::string& kind, uint64_t seed, const VehicleTrajectory& path) {
-  const PathSamples samples(path);
+Scene buildScene(const std::string& kind, uint64_t seed, const VehicleTrajectory& path,
+                 const VehicleTrajectory* vehicle) {
+  const PathSamples samples(path, vehicle);
   if (kind == "indoor") return buildIndoor(seed, samples);
   if (kind == "corridor") return buildCorridor(seed, samples);
   if (kind == "street") return buildStreet(seed, samples);

@@ -28,6 +28,7 @@
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sim/frame_simulator.h"
+#include "vwe_vo/sim/imu_simulator.h"
 #include "vwe_vo/sim/sequences.h"
 #include "vwe_vo/trajectory/ackermann_arc.h"
 
@@ -58,7 +59,12 @@ void usage(std::ostream& os) {
         "[--packet-ms MS]\n"
         "ecd: DIR/events.txt calib.txt groundtruth.txt extrinsics.txt; bag: DIR/NAME.bag\n"
         "(/dvs/events /dvs/camera_info /gt/pose /odom /dvs/imu [/dvs/image_raw]); always "
-        "DIR/groundtruth.txt.\n"
+        "DIR/groundtruth.txt\n"
+        "(6-DoF T_odom_base at 200 Hz). Sequences with the DAVIS-like IMU (street_drive, "
+        "indoor_drive and\n"
+        "their _flat twins): /dvs/imu at 1 kHz, DIR/imu.txt (`t ax ay az gx gy gz`, m/s^2, rad/s, "
+        "camera frame)\n"
+        "in ECD folders, the true gyro bias in DIR/imu_bias.txt.\n"
         "--images: 25 Hz mono8 APS frames with motion blur, noise and auto-exposure: "
         "/dvs/image_raw in the\n"
         "bag, DIR/images/frame_NNNNNNNN.png listed in DIR/images.txt (`t "
@@ -184,7 +190,7 @@ int run(const Args& args) {
   const int64_t duration_ns = args.duration_s > 0
                                   ? std::min(trajectory.durationNs(), secToNs(args.duration_s))
                                   : trajectory.durationNs();
-  const sim::Scene scene = sim::buildScene(spec.scene, spec.seed, trajectory);
+  const sim::Scene scene = sim::buildSequenceScene(spec, trajectory);
   sim::EventSimulator simulator(scene, camera, T_base_cam, trajectory, spec.simulator);
 
   const bool want_ecd = args.format.find("ecd") != std::string::npos;
@@ -210,6 +216,22 @@ int run(const Args& args) {
   const double gyro_sigma = 0.005, accel_sigma = 0.05;
   const sensor_msgs::CameraInfo info = calibrationToMsg(calib, "davis");
 
+  // The DAVIS-like IMU (sequences with davis_imu): 1 kHz, its own random stream; imu.txt in ECD
+  // folders, the true gyro bias in imu_bias.txt.
+  std::unique_ptr<sim::ImuSimulator> davis_imu;
+  std::unique_ptr<EcdImuWriter> imu_txt;
+  int64_t next_davis_imu = 0;
+  if (spec.davis_imu) {
+    davis_imu = std::make_unique<sim::ImuSimulator>(trajectory, T_base_cam, spec.imu);
+    if (want_ecd) imu_txt = std::make_unique<EcdImuWriter>(args.out + "/imu.txt");
+    std::ofstream bias(args.out + "/imu_bias.txt");
+    const Vec3& b = davis_imu->gyroBias();
+    bias << "# true constant gyro bias in the camera (IMU) frame [rad/s]: bx by bz; noise sigma "
+            "per sample: gyro [rad/s] accel [m/s^2]\n"
+         << fmt("%.9g", b.x()) << " " << fmt("%.9g", b.y()) << " " << fmt("%.9g", b.z()) << "\n"
+         << fmt("%.9g", spec.imu.gyroSigma()) << " " << fmt("%.9g", spec.imu.accelSigma()) << "\n";
+    if (!bias) throw std::runtime_error("cannot write " + args.out + "/imu_bias.txt");
+  }
   std::unique_ptr<EcdEventWriter> ecd_events;  // streamed: memory does not grow with the sequence
   if (want_ecd) ecd_events = std::make_unique<EcdEventWriter>(args.out + "/events.txt");
   EventVector shifted;
@@ -273,7 +295,22 @@ int run(const Args& args) {
         m.pose = poseToMsg(trajectory.T_odom_base(next_gt));
         bag.write("/gt/pose", m.header.stamp, m);
       }
-      for (; next_imu <= t1; next_imu += 5000000) {
+      for (; davis_imu && next_davis_imu <= t1; next_davis_imu += davis_imu->periodNs()) {
+        const ImuSample z = davis_imu->measure(next_davis_imu);
+        if (imu_txt) imu_txt->write({z.t_ns + kEpochNs, z.accel, z.gyro});
+        sensor_msgs::Imu m;
+        m.header.stamp = stamp(next_davis_imu);
+        m.header.frame_id = "davis";
+        m.orientation_covariance[0] = -1;  // no orientation
+        m.angular_velocity = vectorToMsg(z.gyro);
+        m.linear_acceleration = vectorToMsg(z.accel);
+        for (int k = 0; k < 3; ++k) {
+          m.angular_velocity_covariance[4 * k] = spec.imu.gyroSigma() * spec.imu.gyroSigma();
+          m.linear_acceleration_covariance[4 * k] = spec.imu.accelSigma() * spec.imu.accelSigma();
+        }
+        bag.write("/dvs/imu", m.header.stamp, m);
+      }
+      for (; !davis_imu && next_imu <= t1; next_imu += 5000000) {
         const int64_t h = 1000000;
         const int64_t ta = std::max<int64_t>(0, next_imu - h), tb = ta + 2 * h;
         const Pose3 Ta = simulator.T_odom_cam(ta), Tm = simulator.T_odom_cam(ta + h),
@@ -327,6 +364,12 @@ int run(const Args& args) {
         }
       }
     }
+    // ECD only: the DAVIS IMU still goes to imu.txt.
+    for (; davis_imu && !want_bag && next_davis_imu <= t1;
+         next_davis_imu += davis_imu->periodNs()) {
+      const ImuSample z = davis_imu->measure(next_davis_imu);
+      if (imu_txt) imu_txt->write({z.t_ns + kEpochNs, z.accel, z.gyro});
+    }
     if (frames) {
       // APS frames (sim_frames.cpp): exposure blur, shot/read/fixed-pattern noise, auto-exposure.
       for (const sim::SimulatedFrame& f : frames->simulateUntil(t1)) {
@@ -369,6 +412,7 @@ int run(const Args& args) {
   writeTum(args.out + "/groundtruth.txt", gt);
   if (want_ecd) {
     ecd_events.reset();
+    imu_txt.reset();
     EcdCalibration ec{calib.fx,
                       calib.fy,
                       calib.cx,

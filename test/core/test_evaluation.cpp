@@ -282,3 +282,76 @@ TEST(Evaluation, ArcsCsvRefusesTimesOutsideTheRepresentableRange) {
     EXPECT_NE(std::string(e.what()).find("3e19"), std::string::npos) << e.what();
   }
 }
+
+namespace {
+/// A drive whose yaw rate varies: omega(t) = 0.3 sin(2 pi t / 4) + 0.15 sin(2 pi t / 1.7) rad/s.
+double weaveYaw(double t) {
+  return 0.3 * 4 / (2 * kPi) * (1 - std::cos(2 * kPi * t / 4)) +
+         0.15 * 1.7 / (2 * kPi) * (1 - std::cos(2 * kPi * t / 1.7));
+}
+}  // namespace
+
+TEST(Evaluation, YawRateLagOfADelayedAndAnAdvancedEstimate) {
+  for (const double lag : {0.2, -0.2, 0.0}) {
+    // The estimate at t is the truth at t - lag (lag > 0: late).
+    const Trajectory3 gt = planarTrajectory(30.0, weaveYaw, [](double) { return 1.0; });
+    const Trajectory3 est = planarTrajectory(
+        30.0, [=](double t) { return weaveYaw(t - lag); }, [](double) { return 1.0; });
+    int samples = 0;
+    const double found = yawRateLag(gt, est, EvaluationOptions(), &samples);
+    EXPECT_NEAR(found, lag, 0.005) << "lag " << lag;
+    EXPECT_GT(samples, 2000);
+    const EvaluationResult r = evaluate(gt, est, EvaluationOptions());
+    EXPECT_NEAR(r.yaw_rate_lag_s, lag, 0.005);
+    // A lagging estimate has a pure yaw error.
+    EXPECT_NEAR(r.rpe.tilt_rmse_deg_s, 0.0, 1e-6);
+    if (lag != 0) EXPECT_GT(r.rpe.yaw_rmse_deg_s, 1.0);
+  }
+}
+
+TEST(Evaluation, YawRateLagIsUndefinedWithoutYawRateVariation) {
+  const Trajectory3 gt = planarTrajectory(
+      20.0, [](double t) { return 0.2 * t; }, [](double) { return 1.0; });
+  EXPECT_TRUE(std::isnan(yawRateLag(gt, gt, EvaluationOptions())));
+}
+
+TEST(Evaluation, PureTiltErrorHasNoYawPartAndPureYawErrorNoTiltPart) {
+  // Truth drives straight; the estimate rolls by phi(t) = a sin(2 pi t / T) about base_link's x.
+  const double a = 0.02, period = 3.0;
+  const Trajectory3 gt = planarTrajectory(
+      20.0, [](double) { return 0.0; }, [](double) { return 1.0; });
+  Trajectory3 est = gt;
+  for (StampedPose& p : est) {
+    const double phi = a * std::sin(2 * kPi * nsToSec(p.t_ns) / period);
+    p.T = p.T * makePose(Eigen::AngleAxisd(phi, Vec3::UnitX()).toRotationMatrix(), Vec3::Zero());
+  }
+  EvaluationOptions o;
+  const EvaluationResult r = evaluate(gt, est, o);
+  // Independent truth: the error of each pair is a roll by phi(t + Delta) - phi(t).
+  double se = 0;
+  int n = 0;
+  for (const RpePair& p : r.rpe.series) {
+    const double t = nsToSec(p.t_ns);
+    const double d =
+        a * (std::sin(2 * kPi * (t + o.delta_s) / period) - std::sin(2 * kPi * t / period));
+    se += std::pow(d * kDegPerRad / o.delta_s, 2);
+    ++n;
+    EXPECT_NEAR(p.yaw_err_deg_s, 0.0, 1e-9);
+  }
+  EXPECT_NEAR(r.rpe.yaw_rmse_deg_s, 0.0, 1e-9);
+  EXPECT_NEAR(r.rpe.tilt_rmse_deg_s, std::sqrt(se / n), 1e-6);
+  EXPECT_NEAR(r.rpe.tilt_rmse_deg_s, r.rpe.rot_rmse_deg_s, 1e-9);
+  EXPECT_GT(r.rpe.tilt_rmse_deg_s, 0.5);
+
+  // A yaw-rate bias of 0.01 rad/s on a curved planar drive: a pure heading error.
+  const Trajectory3 gt2 = curvedDrive(20.0), est2 = curvedDrive(20.0, 0.01);
+  const EvaluationResult r2 = evaluate(gt2, est2, o);
+  EXPECT_NEAR(r2.rpe.tilt_rmse_deg_s, 0.0, 1e-6);
+  EXPECT_NEAR(r2.rpe.yaw_rmse_deg_s, 0.01 * kDegPerRad, 1e-6);
+  EXPECT_NEAR(r2.rpe.yaw_median_deg_s, 0.01 * kDegPerRad, 1e-6);
+  const nlohmann::json j = toJson(r2);
+  EXPECT_NEAR(j["yaw_rpe_rmse_deg_s"].get<double>(), r2.rpe.yaw_rmse_deg_s, 1e-12);
+  EXPECT_TRUE(j.contains("yaw_rpe_median_deg_s"));
+  EXPECT_TRUE(j.contains("tilt_rpe_rmse_deg_s"));
+  EXPECT_TRUE(j.contains("yaw_rate_lag_s"));
+}

@@ -9,6 +9,7 @@
 #include "vwe_vo/io/config.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sim/event_simulator.h"
+#include "vwe_vo/sim/imu_simulator.h"
 #include "vwe_vo/sim/scene.h"
 #include "vwe_vo/sim/sequences.h"
 
@@ -300,6 +301,229 @@ TEST(SimulatorSequences, UnknownNameListsValidOnes) {
   }
   EXPECT_THROW(buildScene("moon", 1, VehicleTrajectory::fromProfile(straightProfile(1, 1))),
                std::invalid_argument);
+}
+
+TEST(SimulatorSequences, FlatSequencesAreUnchanged) {
+  // Poses, speeds and yaw rates recorded from the simulator before continuous motion, suspension
+  // and the DAVIS IMU were added: every new option defaults to off.
+  struct Row {
+    const char* name;
+    double t, x, y, z, qx, qy, qz, qw, v, w;
+  };
+  const Row rows[] = {
+      {"street_long", 0.70, 4.0992363748570497, 0, 0, 0, 0, 0, 1, 5.8560519640814013, 0},
+      {"street_long", 5.30, 31.037075409628166, 0, 0, 0, 0, 0, 1, 5.8560519640814013, 0},
+      {"street_long", 12.90, 69.469207034223601, 8.265956237230947, 0, 0, 0, 0.54809017368096069,
+       0.83641924984685423, 5, 0.36379676635540426},
+      {"street_long", 23.45, 71.08301638483195, 74.793081976540691, 0, 0, 0, 0.60433434307526601,
+       0.79673082140694584, 5, -0.4105657334138037},
+      {"street_long", 37.10, 162.43038473081282, 84.955876524074228, 0, 0, 0, 0.20489066570584513,
+       0.97878486661095021, 5, 0.33760469293917633},
+      {"indoor_long", 0.70, 0.2450000000000043, 0, 0, 0, 0, 0, 1, 0.34999999999999998, 0},
+      {"indoor_long", 5.30, 1.549229855199272, 0.34385239408151358, 0, 0, 0, 0.56640623692456182,
+       0.82412618862220188, 0.27999999999999997, 0.52359877559829882},
+      {"indoor_long", 12.90, 0.95745511528590754, 1.7230569088657126, 0, 0, 0, 1,
+       2.3809304881959094e-13, 0, 0},
+      {"indoor_long", 23.45, -0.49223497816277034, 3.0859120203999044, 0, 0, 0, 0.87881711266241658,
+       0.47715876025877735, 0.24499999999999997, 1.0471975511965976},
+      {"indoor_figure8", 0.70, 0.23955132858653469, 0.04439821445230574, 0, 0, 0,
+       0.18223552549213623, 0.98325490756395673, 0.34999999999999998, 0.52359877559829882},
+      {"indoor_figure8", 5.30, 0.23955132858823527, 1.292503307520674, 0, 0, 0, 0.98325490756364264,
+       0.18223552549383051, 0.34999999999999998, 0.52359877559829882},
+      {"indoor_figure8", 12.90, 0.30342157041151846, -0.074321890073570568, 0, 0, 0,
+       -0.23344536385796369, 0.9723699203971824, 0.34999999999999998, -0.52359877559829882},
+      {"indoor_figure8", 23.45, -0.18989899792220216, -0.028992097786567989, 0, 0, 0,
+       0.14349262199117066, 0.98965138681967146, 0.34999999999999998, -0.52359877559829882},
+  };
+  struct Length {
+    const char* name;
+    int64_t duration_ns;
+    double path_m;
+  };
+  const Length lengths[] = {
+      {"street_long", 40530320571, 252.28929604295845},
+      {"indoor_long", 30500000000, 8.3299999999983623},
+      {"indoor_figure8", 24000000000, 8.3999999999924775},
+  };
+  for (const Length& l : lengths) {
+    const SequenceSpec s = findSequence(l.name);
+    const auto tr = VehicleTrajectory::fromProfile(s.profile, s.trajectory);
+    EXPECT_EQ(tr.durationNs(), l.duration_ns) << l.name;
+    EXPECT_EQ(tr.pathLength(), l.path_m) << l.name;
+    EXPECT_FALSE(s.davis_imu) << l.name;
+  }
+  for (const Row& r : rows) {
+    const SequenceSpec s = findSequence(r.name);
+    const auto tr = VehicleTrajectory::fromProfile(s.profile, s.trajectory);
+    const Pose3 T = tr.T_odom_base(secToNs(r.t));
+    const Quat q(T.linear());
+    EXPECT_EQ(T.translation().x(), r.x) << r.name << " " << r.t;
+    EXPECT_EQ(T.translation().y(), r.y) << r.name << " " << r.t;
+    EXPECT_EQ(T.translation().z(), r.z) << r.name << " " << r.t;
+    EXPECT_NEAR(q.x(), r.qx, 1e-15);
+    EXPECT_NEAR(q.y(), r.qy, 1e-15);
+    EXPECT_NEAR(q.z(), r.qz, 1e-15);
+    EXPECT_NEAR(q.w(), r.qw, 1e-15);
+    EXPECT_EQ(tr.speed(secToNs(r.t)), r.v) << r.name << " " << r.t;
+    EXPECT_EQ(tr.yawRate(secToNs(r.t)), r.w) << r.name << " " << r.t;
+  }
+}
+
+TEST(SimulatorSequences, SceneOfTheFlatSequencesIsUnchanged) {
+  // Face counts recorded before the scene could follow a separate layout path.
+  const std::pair<const char*, size_t> counts[] = {
+      {"indoor_long", 158}, {"corridor_straight", 52}, {"street_long", 1185}};
+  for (const auto& c : counts) {
+    const SequenceSpec s = findSequence(c.first);
+    const auto tr = VehicleTrajectory::fromProfile(s.profile, s.trajectory);
+    EXPECT_EQ(buildSequenceScene(s, tr).faces.size(), c.second) << c.first;
+  }
+}
+
+TEST(SimulatorTrajectory, DriveSequencesSteerAndChangeSpeedContinuously) {
+  for (const char* name : {"street_drive", "indoor_drive"}) {
+    const SequenceSpec s = findSequence(name);
+    const auto tr = VehicleTrajectory::fromProfile(s.profile, s.trajectory);
+    const double v_mean = s.profile.front().v;
+    double max_dw = 0, max_dv = 0, max_w = 0, v_min = 1e9, v_max = 0;
+    for (int64_t t = 1000000; t <= tr.durationNs(); t += 1000000) {
+      max_dw = std::max(max_dw, std::abs(tr.yawRate(t) - tr.yawRate(t - 1000000)));
+      max_dv = std::max(max_dv, std::abs(tr.speed(t) - tr.speed(t - 1000000)));
+      max_w = std::max(max_w, std::abs(tr.yawRate(t)));
+      bool stopping = false;
+      for (const StopEvent& st : s.trajectory.motion.stops)
+        stopping |= nsToSec(t) > st.t_start_s &&
+                    nsToSec(t) < st.t_start_s + st.brake_s + st.dwell_s + st.go_s;
+      if (!stopping) v_min = std::min(v_min, tr.speed(t)), v_max = std::max(v_max, tr.speed(t));
+    }
+    // No steps: per 1 ms the yaw rate moves by less than 0.1 deg/s, the speed by < 0.2 % of v.
+    EXPECT_LT(max_dw, 0.1 * kDeg) << name;
+    EXPECT_LT(max_dv, 2e-3 * v_mean) << name;
+    EXPECT_GT(max_w, 10 * kDeg) << name;
+    EXPECT_GE(v_min, 0.75 * v_mean) << name;
+    EXPECT_LE(v_max, 1.25 * v_mean) << name;
+    EXPECT_LT(v_min, 0.85 * v_mean) << name;  // the speed does change
+    EXPECT_GT(v_max, 1.1 * v_mean) << name;
+  }
+  // indoor_drive stops twice, exactly.
+  const SequenceSpec s = findSequence("indoor_drive");
+  const auto tr = VehicleTrajectory::fromProfile(s.profile, s.trajectory);
+  for (const StopEvent& st : s.trajectory.motion.stops) {
+    const int64_t t = secToNs(st.t_start_s + st.brake_s + 0.5 * st.dwell_s);
+    EXPECT_EQ(tr.speed(t), 0.0);
+    EXPECT_EQ(tr.yawRate(t), 0.0);
+  }
+}
+
+TEST(SimulatorTrajectory, StreetDriveHeadingLeavesTheFacadesAndBends) {
+  const SequenceSpec s = findSequence("street_drive");
+  const auto tr = VehicleTrajectory::fromProfile(s.profile, s.trajectory);
+  // Before the bend the street runs along x: the heading deviates by 10-22 deg at most.
+  double max_dev = 0;
+  for (int64_t t = 0; t < secToNs(18.0); t += 10000000)
+    max_dev = std::max(max_dev, std::abs(tr.planar(t).z()));
+  EXPECT_GT(max_dev, 10 * kDeg);
+  EXPECT_LT(max_dev, 22 * kDeg);
+  // After the bend, along y.
+  const double yaw_end = tr.planar(secToNs(28.0)).z();
+  EXPECT_NEAR(yaw_end, kPi / 2, 20 * kDeg);
+}
+
+TEST(SimulatorTrajectory, SuspensionAmplitudesAreInTheirRanges) {
+  struct Case {
+    const char* name;
+    double tilt_min_deg, tilt_max_deg, heave_max_m;
+  };
+  for (const Case& c :
+       {Case{"street_drive", 0.8, 2.5, 0.03}, Case{"indoor_drive", 0.25, 1.0, 0.01}}) {
+    for (const bool flat : {false, true}) {
+      const SequenceSpec s = findSequence(std::string(c.name) + (flat ? "_flat" : ""));
+      const auto tr = VehicleTrajectory::fromProfile(s.profile, s.trajectory);
+      double pitch = 0, roll = 0, heave = 0;
+      for (int64_t t = 0; t <= tr.durationNs(); t += 5000000) {
+        const SuspensionState b = tr.suspension(t);
+        pitch = std::max(pitch, std::abs(b.pitch_rad));
+        roll = std::max(roll, std::abs(b.roll_rad));
+        heave = std::max(heave, std::abs(b.heave_m));
+        // The ground truth carries it: T_odom_base's z and tilt.
+        const Pose3 T = tr.T_odom_base(t);
+        ASSERT_NEAR(T.translation().z(), b.heave_m, 1e-12);
+        ASSERT_NEAR(std::acos(std::min(1.0, T.linear()(2, 2))),
+                    std::acos(std::cos(b.pitch_rad) * std::cos(b.roll_rad)), 1e-6);
+      }
+      if (flat) {
+        EXPECT_EQ(pitch + roll + heave, 0.0) << c.name;
+        continue;
+      }
+      EXPECT_GT(std::max(pitch, roll), c.tilt_min_deg * kDeg) << c.name;
+      EXPECT_LT(pitch, c.tilt_max_deg * kDeg) << c.name;
+      EXPECT_LT(roll, c.tilt_max_deg * kDeg) << c.name;
+      EXPECT_GT(heave, 0.0) << c.name;
+      EXPECT_LT(heave, c.heave_max_m) << c.name;
+    }
+  }
+}
+
+TEST(SimulatorImu, TruthIsTheDerivativeOfThePose) {
+  const SequenceSpec s = findSequence("street_drive");
+  const auto tr = VehicleTrajectory::fromProfile(s.profile, s.trajectory);
+  const ImuSimulator imu(tr, s.T_base_cam, s.imu);
+  auto T_cam = [&](int64_t t) { return tr.T_odom_base(t) * s.T_base_cam; };
+  for (double ts = 1.0; ts < 39.0; ts += 0.77) {
+    const int64_t t = secToNs(ts), h = 200000;  // 0.2 ms
+    const ImuSample z = imu.truth(t);
+    const Eigen::AngleAxisd aa(T_cam(t - h).linear().transpose() * T_cam(t + h).linear());
+    const Vec3 w_fd = aa.axis() * aa.angle() / (2e-9 * h);
+    EXPECT_LT((z.gyro - w_fd).norm(), 2e-3) << ts;
+    const int64_t H = 2000000;  // 2 ms: second difference of the camera's position
+    const Vec3 a =
+        (T_cam(t - H).translation() - 2 * T_cam(t).translation() + T_cam(t + H).translation()) /
+        std::pow(1e-9 * H, 2);
+    const Vec3 f = T_cam(t).linear().transpose() * (a + Vec3(0, 0, s.imu.gravity));
+    EXPECT_LT((z.accel - f).norm(), 0.05) << ts;
+  }
+}
+
+TEST(SimulatorImu, GyroMinusBiasIntegratesToTheTrueRotation) {
+  const SequenceSpec s = findSequence("street_drive");
+  const auto tr = VehicleTrajectory::fromProfile(s.profile, s.trajectory);
+  ImuSimulator imu(tr, s.T_base_cam, s.imu);
+  const Vec3 b = imu.gyroBias();
+  EXPECT_LE(b.cwiseAbs().maxCoeff(), 0.5 * kDeg);
+  EXPECT_GT(b.norm(), 0.0);
+  const int64_t t0 = secToNs(12.0), t1 = secToNs(27.0), dt = imu.periodNs();
+  Mat3 R = Mat3::Identity(), R_biased = Mat3::Identity();
+  ImuSample prev = imu.measure(t0);
+  for (int64_t t = t0 + dt; t <= t1; t += dt) {
+    const ImuSample z = imu.measure(t);
+    const Vec3 w = 0.5 * (prev.gyro + z.gyro);  // trapezoidal rate over the step
+    R = R * Eigen::AngleAxisd((w - b).norm() * 1e-9 * dt, (w - b).normalized()).toRotationMatrix();
+    R_biased =
+        R_biased * Eigen::AngleAxisd(w.norm() * 1e-9 * dt, w.normalized()).toRotationMatrix();
+    prev = z;
+  }
+  const Mat3 truth = ((tr.T_odom_base(t0) * s.T_base_cam).linear().transpose() *
+                      (tr.T_odom_base(t1) * s.T_base_cam).linear());
+  // Random walk of the white noise: sigma * dt * sqrt(N) per axis (~4e-4 rad over 15 s); 5 sigma
+  // plus the integration error.
+  const double walk = s.imu.gyroSigma() * 1e-3 * std::sqrt(15000.0);
+  EXPECT_LT(rotationAngle(truth.transpose() * R), 5 * std::sqrt(3.0) * walk + 1e-3);
+  // The bias itself drifts by |b| * 15 s.
+  EXPECT_GT(rotationAngle(truth.transpose() * R_biased), 0.5 * b.norm() * 15.0);
+}
+
+TEST(SimulatorImu, AccelerometerAtRestReadsGravityInTheCameraFrame) {
+  const SequenceSpec s = findSequence("indoor_drive_flat");
+  const auto tr = VehicleTrajectory::fromProfile(s.profile, s.trajectory);
+  const ImuSimulator imu(tr, s.T_base_cam, s.imu);
+  const StopEvent& st = s.trajectory.motion.stops.front();
+  const int64_t t = secToNs(st.t_start_s + st.brake_s + 0.5 * st.dwell_s);
+  const ImuSample z = imu.truth(t);
+  const Mat3 R_odom_cam = (tr.T_odom_base(t) * s.T_base_cam).linear();
+  EXPECT_LT((z.accel - R_odom_cam.transpose() * Vec3(0, 0, 9.80665)).norm(), 1e-6);
+  EXPECT_LT(z.gyro.norm(), 1e-9);
+  // The default camera looks forward (z forward, y down): gravity reads along -y of the camera.
+  EXPECT_LT(z.accel.y(), -9.0);
 }
 
 }  // namespace

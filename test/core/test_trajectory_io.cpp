@@ -155,3 +155,29 @@ TEST(TrajectoryIo, MalformedEcdFilesNameFileAndLine) {
   const std::string empty_pose = writeText("empty_pose.txt", "\n");
   expectContains(errorOf([&] { readPoseLine(empty_pose); }), empty_pose);
 }
+
+TEST(TrajectoryIo, EcdImuRoundTripAndMalformedLines) {
+  std::vector<ImuSample> in;
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  for (int i = 0; i < 50; ++i)
+    in.push_back({1000000000 + i * 1000000, Vec3(n01(rng), n01(rng), 9.81 + n01(rng)),
+                  0.1 * Vec3(n01(rng), n01(rng), n01(rng))});
+  const std::string path = tempPath("imu.txt");
+  writeEcdImu(path, in);
+  const std::vector<ImuSample> out = readEcdImu(path);
+  ASSERT_EQ(out.size(), in.size());
+  for (size_t i = 0; i < in.size(); ++i) {
+    EXPECT_EQ(out[i].t_ns, in[i].t_ns);
+    // %.9g: 9 significant digits.
+    EXPECT_LT((out[i].accel - in[i].accel).norm(), 1e-7 * (1 + in[i].accel.norm()));
+    EXPECT_LT((out[i].gyro - in[i].gyro).norm(), 1e-8);
+  }
+  const std::string short_line =
+      writeText("bad_imu.txt", "# t ax ay az gx gy gz\n1.0 0 0 9.8 0 0 0\n1.001 0 0 9.8 0 0\n");
+  expectContains(errorOf([&] { readEcdImu(short_line); }), short_line + ":3");
+  const std::string word = writeText("word_imu.txt", "1.0 0 0 9.8 0 0 x\n");
+  expectContains(errorOf([&] { readEcdImu(word); }), word + ":1");
+  const std::string back = writeText("back_imu.txt", "1.0 0 0 9.8 0 0 0\n0.9 0 0 9.8 0 0 0\n");
+  expectContains(errorOf([&] { readEcdImu(back); }), back + ":2");
+}

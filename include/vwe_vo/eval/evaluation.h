@@ -22,7 +22,10 @@ struct EvaluationOptions {
   double yaw_rate_dt_s = 0.1;  // interval of the finite-difference yaw rate [s]
   double segment_m = 10.0;     // ground-truth distance per scale-drift segment [m]
   std::vector<double> extra_deltas_s = {
-      0.5};  // further RPE intervals reported as "rpe_<delta>" [s]
+      0.5};                         // further RPE intervals reported as "rpe_<delta>" [s]
+  double lag_max_s = 1.0;           // yaw-rate lag searched within +-lag_max_s [s]
+  double lag_resolution_s = 0.001;  // grid of the lag search (then refined by a parabola) [s]
+  double lag_sample_step_s = 0.01;  // spacing of the yaw-rate samples compared [s]
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
@@ -47,6 +50,10 @@ struct RpePair {
   int64_t t_ns = 0;
   double rot_err_deg_s = 0;
   double trans_dir_err_deg_s = 0;
+  // Swing-twist split of the rotation error E = R_gt_rel^T R_est_rel about base_link's z axis:
+  // the twist (heading-change error) and the swing (how far E tilts the vertical).
+  double yaw_err_deg_s = 0;
+  double tilt_err_deg_s = 0;
 };
 
 struct RpeResult {
@@ -57,6 +64,8 @@ struct RpeResult {
   int est_still_pairs = 0;   // ground truth moved, the estimate did not: direction error 90 deg
   std::string error;         // why no pair could be evaluated (only for extra deltas); else empty
   double rot_rmse_deg_s = 0, rot_median_deg_s = 0;
+  double yaw_rmse_deg_s = 0, yaw_median_deg_s = 0;              // planar part of the rotation error
+  double tilt_rmse_deg_s = 0, tilt_median_deg_s = 0;            // roll/pitch part
   double trans_dir_rmse_deg_s = 0, trans_dir_median_deg_s = 0;  // NaN if every pair stood still
   std::vector<RpePair> series;
 };
@@ -74,6 +83,11 @@ struct EvaluationResult {
   std::vector<RpeResult> rpe_extra;  // at options.extra_deltas_s that fit into the overlap
   double yaw_rate_rmse_deg_s = 0;
   int yaw_rate_samples = 0;
+  // Time shift of the truth's yaw rate (within +-lag_max_s) that fits the estimate's best in the
+  // least-squares sense: > 0 the estimate lags behind, < 0 it is early. NaN if the truth's yaw
+  // rate does not vary or fewer than 10 samples are tracked.
+  double yaw_rate_lag_s = 0;
+  int yaw_rate_lag_samples = 0;
   std::vector<double>
       yaw_rate_err_deg_s;  // estimated minus true, at rpe.series times (NaN if untracked)
   double ate_rmse_m = 0;
@@ -93,6 +107,10 @@ struct EvaluationResult {
 /// or no pair is tracked.
 RpeResult computeRpe(const Trajectory3& gt, const Trajectory3& est, double delta_s,
                      const EvaluationOptions& options);
+
+/// The yaw-rate lag alone (see EvaluationResult::yaw_rate_lag_s); *samples gets the count.
+double yawRateLag(const Trajectory3& gt, const Trajectory3& est, const EvaluationOptions& options,
+                  int* samples = nullptr);
 
 /// Every metric above. Throws like computeRpe (at options.delta_s).
 EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est,

@@ -58,6 +58,30 @@ struct EcdCalibration {
 EcdCalibration readEcdCalibration(const std::string& path);
 void writeEcdCalibration(const std::string& path, const EcdCalibration& calib);
 
+/// imu.txt: `t ax ay az gx gy gz` per line (Event Camera Dataset layout), t in seconds,
+/// specific force in m/s^2 and angular velocity in rad/s, both in the IMU frame.
+struct ImuSample {
+  int64_t t_ns = 0;
+  Vec3 accel = Vec3::Zero();  // specific force [m/s^2]
+  Vec3 gyro = Vec3::Zero();   // angular velocity [rad/s]
+};
+/// Throws on malformed lines, non-finite values and time going back.
+std::vector<ImuSample> readEcdImu(const std::string& path);
+void writeEcdImu(const std::string& path, const std::vector<ImuSample>& samples);
+/// The same, streamed.
+class EcdImuWriter {
+ public:
+  explicit EcdImuWriter(const std::string& path);
+  ~EcdImuWriter();
+  EcdImuWriter(const EcdImuWriter&) = delete;
+  EcdImuWriter& operator=(const EcdImuWriter&) = delete;
+  void write(const ImuSample& sample);
+
+ private:
+  std::string path_;
+  FILE* file_;
+};
+
 /// extrinsics.txt: T_base_cam as `px py pz qx qy qz qw` on one line.
 Pose3 readPoseLine(const std::string& path);
 void writePoseLine(const std::string& path, const Pose3& T);

@@ -50,9 +50,11 @@ struct Scene {
 };
 
 /// Scene kinds: "indoor" (a lab room with furniture and posters), "corridor", "street"
-/// (facades with windows, poles, parked cars). Obstacles keep clear of the trajectory's path.
+/// (facades with windows, poles, parked cars). The layout follows `path` (the street's axis);
+/// obstacles keep clear of it and of `vehicle`'s path when given (a car weaving around the axis).
 /// Throws std::invalid_argument naming the valid kinds for an unknown one.
-Scene buildScene(const std::string& kind, uint64_t seed, const VehicleTrajectory& path);
+Scene buildScene(const std::string& kind, uint64_t seed, const VehicleTrajectory& path,
+                 const VehicleTrajectory* vehicle = nullptr);
 std::vector<std::string> sceneKinds();
 
 /// Ray caster over a scene. prepare() culls faces per 16x16 pixel tile for one camera pose;
