@@ -137,8 +137,8 @@ SuspensionOptions carSuspension(uint64_t seed) {
   s.roll_hz = 1.5;
   s.damping_ratio = 0.3;
   // Pitch ~1.5 deg at 0.4 g of braking (1-2 deg per 0.3-0.5 g); roll gradient ~4 deg/g.
-  s.pitch_per_g_rad = 3.75 * kDeg;
-  s.roll_per_g_rad = 4.0 * kDeg;
+  s.pitch_per_g_rad = 3.75 * kRadPerDeg;
+  s.roll_per_g_rad = 4.0 * kRadPerDeg;
   return s;
 }
 
@@ -158,8 +158,8 @@ SuspensionOptions turtlebotSuspension(uint64_t seed) {
   s.pitch_hz = 4.0;
   s.roll_hz = 4.0;
   s.damping_ratio = 0.5;
-  s.pitch_per_g_rad = 3.0 * kDeg;
-  s.roll_per_g_rad = 3.0 * kDeg;
+  s.pitch_per_g_rad = 3.0 * kRadPerDeg;
+  s.roll_per_g_rad = 3.0 * kRadPerDeg;
   return s;
 }
 
@@ -272,7 +272,7 @@ std::vector<SequenceSpec> standardSequences() {
     s.seed = 31;
     s.trajectory = streetDriveMotion(&s.profile, &s.layout_profile, &s.layout_trajectory);
     if (!flat) s.trajectory.suspension = carSuspension(s.seed);
-    s.T_base_cam = mountToTBaseCam(Vec3(1.5, 0.0, 1.4), 0.0, 5.0 * kDeg, 0.0);
+    s.T_base_cam = mountToTBaseCam(Vec3(1.5, 0.0, 1.4), 0.0, 5.0 * kRadPerDeg, 0.0);
     s.simulator.seed = s.seed;
     s.davis_imu = true;
     s.imu.seed = s.seed;

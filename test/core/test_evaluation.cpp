@@ -305,7 +305,9 @@ TEST(Evaluation, YawRateLagOfADelayedAndAnAdvancedEstimate) {
     EXPECT_NEAR(r.yaw_rate_lag_s, lag, 0.005);
     // A lagging estimate has a pure yaw error.
     EXPECT_NEAR(r.rpe.tilt_rmse_deg_s, 0.0, 1e-6);
-    if (lag != 0) EXPECT_GT(r.rpe.yaw_rmse_deg_s, 1.0);
+    if (lag != 0) {
+      EXPECT_GT(r.rpe.yaw_rmse_deg_s, 1.0);
+    }
   }
 }
 

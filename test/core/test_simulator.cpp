@@ -17,8 +17,6 @@ namespace vwe_vo {
 namespace sim {
 namespace {
 
-constexpr double kDeg = kPi / 180.0;
-
 const CameraModel& camera() {
   static const CameraModel cam(
       loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
@@ -44,7 +42,7 @@ size_t countIn(const EventVector& ev, double t0, double t1) {
 
 TEST(Simulator, EventsSortedAndInsideSensor) {
   const EventVector ev =
-      simulate(circleProfile(0.4, 25 * kDeg, 1.0), 0.25, EventSimulatorOptions());
+      simulate(circleProfile(0.4, 25 * kRadPerDeg, 1.0), 0.25, EventSimulatorOptions());
   ASSERT_GT(ev.size(), 10000u);
   for (size_t i = 0; i < ev.size(); ++i) {
     ASSERT_LT(ev[i].x, 346);
@@ -61,7 +59,7 @@ TEST(Simulator, EventsSortedAndInsideSensor) {
 TEST(Simulator, ChunkedCallsStaySortedInsideTheirIntervals) {
   // Tiles are re-rendered on their own schedules; every call must still flush them so that its
   // events lie in (previous end, end], sorted, and chunking must not change the event rate.
-  const auto tr = VehicleTrajectory::fromProfile(circleProfile(0.4, 25 * kDeg, 1.0));
+  const auto tr = VehicleTrajectory::fromProfile(circleProfile(0.4, 25 * kRadPerDeg, 1.0));
   const Scene scene = buildScene("indoor", 5, tr);
   EventSimulatorOptions opt;
   opt.noise_rate_hz = 0.0;
@@ -89,7 +87,7 @@ TEST(Simulator, ChunkedCallsStaySortedInsideTheirIntervals) {
 TEST(Simulator, SameEventsWhateverTheThreadCount) {
   // Tile rows are rendered on a pool; the events (signal and noise) must not depend on how many
   // threads share them out.
-  const auto tr = VehicleTrajectory::fromProfile(circleProfile(0.4, 25 * kDeg, 1.0));
+  const auto tr = VehicleTrajectory::fromProfile(circleProfile(0.4, 25 * kRadPerDeg, 1.0));
   const Scene scene = buildScene("indoor", 5, tr);
   EventVector ev[2];
   for (int k = 0; k < 2; ++k) {
@@ -130,7 +128,8 @@ TEST(Simulator, EventRateGrowsWithSpeed) {
 }
 
 TEST(Simulator, PolarityBalanceIsSane) {
-  const EventVector ev = simulate(circleProfile(0.4, 25 * kDeg, 1.0), 0.3, EventSimulatorOptions());
+  const EventVector ev =
+      simulate(circleProfile(0.4, 25 * kRadPerDeg, 1.0), 0.3, EventSimulatorOptions());
   const double on =
       std::count_if(ev.begin(), ev.end(), [](const PixelEvent& e) { return e.polarity > 0; });
   std::printf("[simulator] ON fraction %.4f of %zu events\n", on / ev.size(), ev.size());
@@ -169,7 +168,7 @@ double warpedVariance(const EventVector& ev, const VehicleTrajectory& tr, int64_
 }
 
 TEST(Simulator, EventsAgreeWithTrueRotation) {
-  const auto tr = VehicleTrajectory::fromProfile(rotationProfile(30 * kDeg, 0.3));
+  const auto tr = VehicleTrajectory::fromProfile(rotationProfile(30 * kRadPerDeg, 0.3));
   EventSimulator sim(buildScene("indoor", 3, tr), camera(), defaultTBaseCam(), tr);
   EventVector all;
   sim.simulateUntil(secToNs(0.2), &all);
@@ -192,7 +191,7 @@ TEST(Simulator, HdrToggleChangesEventRate) {
   opt.illumination_ramp_s = 0.05;
   opt.dark_noise_rate_hz = 0.0;  // signal only here; the noise rate is checked below
   SimulatorStats st;
-  const EventVector ev = simulate(circleProfile(0.4, 25 * kDeg, 1.0), 0.55, opt, &st);
+  const EventVector ev = simulate(circleProfile(0.4, 25 * kRadPerDeg, 1.0), 0.55, opt, &st);
   const double bright = countIn(ev, 0.05, 0.2) / 0.15;
   const double ramp = countIn(ev, 0.25, 0.3) / 0.05;
   const double dark = countIn(ev, 0.35, 0.5) / 0.15;
@@ -222,7 +221,7 @@ TEST(Simulator, DepthOfAKnownWall) {
 }
 
 TEST(SimulatorTrajectory, CircleHasRadiusVOverOmegaAndTangentHeading) {
-  const double v = 0.4, w = 25 * kDeg;
+  const double v = 0.4, w = 25 * kRadPerDeg;
   const auto tr = VehicleTrajectory::fromProfile(circleProfile(v, w, 2 * kPi / w));
   const Vec2 centre(0.0, v / w);
   for (int64_t t = 0; t <= tr.durationNs(); t += secToNs(0.37)) {
@@ -251,7 +250,7 @@ TEST(SimulatorTrajectory, LongIndoorHasAnExactStandstill) {
   EXPECT_GT(longest, 2.95);
   EXPECT_GT(tr.durationSec(), 28.0);
   // Turns of exactly duration * omega: net heading = 90 + 90 - 90 + 120 + 90 deg.
-  EXPECT_NEAR(wrapAngle(tr.planar(tr.durationNs()).z() - wrapAngle(300 * kDeg)), 0.0, 1e-6);
+  EXPECT_NEAR(wrapAngle(tr.planar(tr.durationNs()).z() - wrapAngle(300 * kRadPerDeg)), 0.0, 1e-6);
 }
 
 TEST(SimulatorOptions, ValidateNamesTheField) {
@@ -397,9 +396,9 @@ TEST(SimulatorTrajectory, DriveSequencesSteerAndChangeSpeedContinuously) {
       if (!stopping) v_min = std::min(v_min, tr.speed(t)), v_max = std::max(v_max, tr.speed(t));
     }
     // No steps: per 1 ms the yaw rate moves by less than 0.1 deg/s, the speed by < 0.2 % of v.
-    EXPECT_LT(max_dw, 0.1 * kDeg) << name;
+    EXPECT_LT(max_dw, 0.1 * kRadPerDeg) << name;
     EXPECT_LT(max_dv, 2e-3 * v_mean) << name;
-    EXPECT_GT(max_w, 10 * kDeg) << name;
+    EXPECT_GT(max_w, 10 * kRadPerDeg) << name;
     EXPECT_GE(v_min, 0.75 * v_mean) << name;
     EXPECT_LE(v_max, 1.25 * v_mean) << name;
     EXPECT_LT(v_min, 0.85 * v_mean) << name;  // the speed does change
@@ -422,11 +421,11 @@ TEST(SimulatorTrajectory, StreetDriveHeadingLeavesTheFacadesAndBends) {
   double max_dev = 0;
   for (int64_t t = 0; t < secToNs(18.0); t += 10000000)
     max_dev = std::max(max_dev, std::abs(tr.planar(t).z()));
-  EXPECT_GT(max_dev, 10 * kDeg);
-  EXPECT_LT(max_dev, 22 * kDeg);
+  EXPECT_GT(max_dev, 10 * kRadPerDeg);
+  EXPECT_LT(max_dev, 22 * kRadPerDeg);
   // After the bend, along y.
   const double yaw_end = tr.planar(secToNs(28.0)).z();
-  EXPECT_NEAR(yaw_end, kPi / 2, 20 * kDeg);
+  EXPECT_NEAR(yaw_end, kPi / 2, 20 * kRadPerDeg);
 }
 
 TEST(SimulatorTrajectory, SuspensionAmplitudesAreInTheirRanges) {
@@ -455,9 +454,9 @@ TEST(SimulatorTrajectory, SuspensionAmplitudesAreInTheirRanges) {
         EXPECT_EQ(pitch + roll + heave, 0.0) << c.name;
         continue;
       }
-      EXPECT_GT(std::max(pitch, roll), c.tilt_min_deg * kDeg) << c.name;
-      EXPECT_LT(pitch, c.tilt_max_deg * kDeg) << c.name;
-      EXPECT_LT(roll, c.tilt_max_deg * kDeg) << c.name;
+      EXPECT_GT(std::max(pitch, roll), c.tilt_min_deg * kRadPerDeg) << c.name;
+      EXPECT_LT(pitch, c.tilt_max_deg * kRadPerDeg) << c.name;
+      EXPECT_LT(roll, c.tilt_max_deg * kRadPerDeg) << c.name;
       EXPECT_GT(heave, 0.0) << c.name;
       EXPECT_LT(heave, c.heave_max_m) << c.name;
     }
@@ -489,7 +488,7 @@ TEST(SimulatorImu, GyroMinusBiasIntegratesToTheTrueRotation) {
   const auto tr = VehicleTrajectory::fromProfile(s.profile, s.trajectory);
   ImuSimulator imu(tr, s.T_base_cam, s.imu);
   const Vec3 b = imu.gyroBias();
-  EXPECT_LE(b.cwiseAbs().maxCoeff(), 0.5 * kDeg);
+  EXPECT_LE(b.cwiseAbs().maxCoeff(), 0.5 * kRadPerDeg);
   EXPECT_GT(b.norm(), 0.0);
   const int64_t t0 = secToNs(12.0), t1 = secToNs(27.0), dt = imu.periodNs();
   Mat3 R = Mat3::Identity(), R_biased = Mat3::Identity();
