@@ -10,6 +10,11 @@ BUILD_TYPE ?= Release
 WERROR ?= OFF
 CLANG_FORMAT ?= clang-format
 CXX_SOURCES = git -C $(ROOT) ls-files -- '*.h' '*.cpp'
+# ccache, when installed, speeds up rebuilds; its base dir (the repository's parent) lets clones
+# side by side share the cache.
+CCACHE ?= $(shell command -v ccache 2>/dev/null)
+LAUNCHER := $(if $(CCACHE),-DCMAKE_CXX_COMPILER_LAUNCHER=$(CCACHE),)
+export CCACHE_BASEDIR ?= $(abspath $(ROOT)/..)
 
 .PHONY: all deps build test test-sanitize fuzz bench demo sequences clean help format format-check
 
@@ -34,7 +39,7 @@ $(WS)/src/vwe_vo:
 
 build: deps $(WS)/src/vwe_vo
 	@echo "[build] catkin workspace $(WS) ($(BUILD_TYPE), -j$(JOBS))"
-	@$(ENV) && cd $(WS) && catkin_make -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) \
+	@$(ENV) && cd $(WS) && catkin_make -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) $(LAUNCHER) \
 	    -DVWE_VO_WERROR=$(WERROR) -DCMAKE_EXPORT_COMPILE_COMMANDS=ON -j$(JOBS) > $(WS)/build.log 2>&1 \
 	  || { tail -n 60 $(WS)/build.log; echo "[build] FAILED, full log: $(WS)/build.log"; exit 1; }
 	@echo "[build] ok"
