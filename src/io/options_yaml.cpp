@@ -317,7 +317,7 @@ PipelineConfig loadPipelineConfig(const std::string& path,
       throw std::runtime_error(path + ": cannot read configuration: " + e.what());
     }
     static const std::set<std::string> known = {
-        "camera_calibration", "T_base_cam", "frontend", "backend", "baseline", "mapping"};
+        "camera_calibration", "T_base_cam", "input", "frontend", "backend", "baseline", "mapping"};
     for (const auto& kv : root)
       if (!known.count(kv.first.as<std::string>()))
         cfg.warnings.push_back(path + ": unknown top-level key '" + kv.first.as<std::string>() +
