@@ -42,6 +42,7 @@ void BackendDriver::afterReset(ResetCause cause, const std::string& why) {
 
 void BackendDriver::reset(const std::string& why) {
   backend_->reset();
+  newest_event_ns_ = -1;  // the events after a requested reset start afresh (no gap to them)
   afterReset(ResetCause::kRequested, why);
 }
 

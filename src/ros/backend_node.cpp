@@ -22,7 +22,6 @@ void BackendNodeOptions::validate() const {
   if (max_queue_events < 1) fail("~max_queue_events must be at least 1");
   if (max_queue_messages < 1) fail("~max_queue_messages must be at least 1");
   if (!(odom_rate_hz > 0 && odom_rate_hz <= 1000)) fail("~odom_rate_hz must be in (0, 1000] [Hz]");
-  if (!(max_gap_s > 0)) fail("~max_gap_s must be positive [s]");
   if (path_max_poses < 1) fail("~path_max_poses must be at least 1");
   if (!(status_period_s > 0)) fail("~status_period_s must be positive [s]");
   if (nice < 0 || nice > 19) fail("~nice must be in [0, 19]");
@@ -59,7 +58,6 @@ void BackendNode::readParameters() {
   params.read("max_queue_events", &o.max_queue_events);
   params.read("max_queue_messages", &o.max_queue_messages);
   params.read("odom_rate_hz", &o.odom_rate_hz);
-  params.read("max_gap_s", &o.max_gap_s);
   params.read("path_max_poses", &o.path_max_poses);
   params.read("status_period_s", &o.status_period_s);
   params.read("publish_tf", &o.publish_tf);
@@ -73,6 +71,11 @@ void BackendNode::readParameters() {
   backend_options_ = config.backend;
   backend_options_.validate();
   T_base_cam_ = config.T_base_cam;
+  input_.setTimestampPolicy(config.input);
+  // The input policy resets on event gaps first; the driver's rule covers the arcs (0: never).
+  if (config.input.max_gap_s > 0) driver_options_.max_gap_s = config.input.max_gap_s;
+  driver_options_.odom_rate_hz = o.odom_rate_hz;
+  driver_options_.validate();
   input_.setBound(InputKind::kEvents, size_t(o.max_queue_events));
   input_.setBound(InputKind::kArc, size_t(o.max_queue_messages));
   if (!o.calibration_path.empty()) {
@@ -88,7 +91,7 @@ void BackendNode::readParameters() {
       o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(), b.degree,
       b.knot_spacing_s, b.window_s, b.update_interval_s, b.tau1_s, b.tau2_s,
       b.max_events_per_volume, contrastName(b.volume.contrast), b.max_iterations, o.odom_rate_hz,
-      o.max_gap_s, o.publish_tf);
+      driver_options_.max_gap_s, o.publish_tf);
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -122,16 +125,13 @@ void BackendNode::workerLoop() {
   try {
     camera_ = std::make_unique<CameraModel>(calibration);
     backend_ = std::make_unique<Backend>(backend_options_, *camera_, T_base_cam_);
-    BackendDriverOptions driver_options;
-    driver_options.odom_rate_hz = node_options_.odom_rate_hz;
-    driver_options.max_gap_s = node_options_.max_gap_s;
     BackendDriver::Callbacks callbacks;
     callbacks.odometry = [this](int64_t t_ns, const Pose3& T, double v, double omega) {
       publishOdometry(t_ns, T, v, omega);
     };
     callbacks.refinement = [this](size_t merged) { publishRefinement(merged); };
     callbacks.reset = [this](BackendDriver::ResetCause, const std::string& why) { onReset(why); };
-    driver_ = std::make_unique<BackendDriver>(backend_.get(), driver_options, callbacks);
+    driver_ = std::make_unique<BackendDriver>(backend_.get(), driver_options_, callbacks);
   } catch (const std::exception& e) {
     ROS_ERROR("backend_node: the back-end cannot start: %s", e.what());
     return;
@@ -148,7 +148,7 @@ void BackendNode::workerLoop() {
       for (Input& input : batch) {
         try {
           if (input.kind == Input::Kind::kEvents)
-            handleEvents(input.events);
+            handleEvents(input.events, input.reset_why);
           else
             handleArc(input.arc, newest_arc);
         } catch (const std::exception& e) {
@@ -171,7 +171,8 @@ void BackendNode::onReset(const std::string& why) {
            why.c_str(), backend_->stats().resets);
 }
 
-void BackendNode::handleEvents(const EventVector& events) {
+void BackendNode::handleEvents(const EventVector& events, const std::string& reset_why) {
+  if (!reset_why.empty()) driver_->reset("the input reset: " + reset_why);
   driver_->addEvents(events);
   const BackendStats& s = backend_->stats();
   if (s.events_out_of_order > reported_out_of_order_) {

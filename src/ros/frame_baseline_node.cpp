@@ -98,6 +98,13 @@ void FrameBaselineNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstP
 
 void FrameBaselineNode::odomCallback(const nav_msgs::Odometry::ConstPtr& msg) {
   const OdometrySample sample = odometryFromMsg(*msg);
+  if (!std::isfinite(sample.v_mps) || !std::isfinite(sample.yaw_rate_rad_s)) {
+    input_.countRefused(InputKind::kOdometry);
+    ROS_WARN_THROTTLE(
+        5, "frame_baseline_node: odometry at %.3f s with a non-finite twist refused (%zu so far)",
+        nsToSec(sample.t_ns), input_.counters()[InputKind::kOdometry].refused);
+    return;
+  }
   Input input;
   input.kind = Input::Kind::kOdometry;
   input.t_ns = sample.t_ns;

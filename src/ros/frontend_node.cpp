@@ -102,6 +102,7 @@ void FrontendNode::readParameters() {
         "more reliable at the start of a turn)");
   T_base_cam_ = config.T_base_cam;
 
+  input_.setTimestampPolicy(config.input);
   input_.setBound(InputKind::kEvents, size_t(o.max_queue_events));
   input_.setBound(InputKind::kOdometry, size_t(o.max_queue_messages));
   input_.setBound(InputKind::kImu, size_t(o.max_queue_messages));
@@ -145,6 +146,13 @@ void FrontendNode::cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& m
 
 void FrontendNode::odomCallback(const nav_msgs::Odometry::ConstPtr& msg) {
   const OdometrySample sample = odometryFromMsg(*msg);
+  if (!std::isfinite(sample.v_mps) || !std::isfinite(sample.yaw_rate_rad_s)) {
+    input_.countRefused(InputKind::kOdometry);
+    ROS_WARN_THROTTLE(
+        5, "frontend_node: odometry at %.3f s with a non-finite twist refused (%zu so far)",
+        nsToSec(sample.t_ns), input_.counters()[InputKind::kOdometry].refused);
+    return;
+  }
   Input input;
   input.kind = Input::Kind::kOdometry;
   input.t_ns = sample.t_ns;
@@ -155,6 +163,14 @@ void FrontendNode::odomCallback(const nav_msgs::Odometry::ConstPtr& msg) {
 
 void FrontendNode::imuCallback(const sensor_msgs::Imu::ConstPtr& msg) {
   const GyroSample sample = gyroFromMsg(*msg, T_base_cam_);
+  if (!std::isfinite(sample.yaw_rate_rad_s)) {
+    input_.countRefused(InputKind::kImu);
+    ROS_WARN_THROTTLE(5,
+                      "frontend_node: IMU sample at %.3f s with a non-finite angular velocity "
+                      "refused (%zu so far)",
+                      nsToSec(sample.t_ns), input_.counters()[InputKind::kImu].refused);
+    return;
+  }
   Input input;
   input.kind = Input::Kind::kGyro;
   input.t_ns = sample.t_ns;
@@ -202,7 +218,7 @@ void FrontendNode::workerLoop() {
       for (const Input& input : batch) {
         switch (input.kind) {
           case Input::Kind::kEvents:
-            handleEvents(input.events);
+            handleEvents(input.events, input.reset_why);
             break;
           case Input::Kind::kOdometry:
             frontend_->addOdometry(input.t_ns, input.v, input.yaw_rate);
@@ -234,7 +250,15 @@ void FrontendNode::workerLoop() {
   }
 }
 
-void FrontendNode::handleEvents(const EventVector& events) {
+void FrontendNode::handleEvents(const EventVector& events, const std::string& reset_why) {
+  if (!reset_why.empty()) {
+    frontend_->reset();
+    ROS_WARN("frontend_node: %s: front-end reset, dead reckoning restarts at the identity",
+             reset_why.c_str());
+    recent_events_.clear();
+    newest_event_ns_ = -1;
+    follower_.reset(events.front().t_ns);
+  }
   int64_t oldest = events.front().t_ns;
   for (const PixelEvent& e : events) oldest = std::min(oldest, e.t_ns);
   const int64_t newest_before = newest_event_ns_;

@@ -23,7 +23,6 @@ void MappingNodeOptions::validate() const {
   if (!(trajectory_margin_s >= 0) || !std::isfinite(trajectory_margin_s))
     fail("~trajectory_margin_s must be finite and >= 0 [s]");
   if (!(keyframe_timeout_s >= 0)) fail("~keyframe_timeout_s must be >= 0 [s]");
-  if (!(max_backwards_jump_s > 0)) fail("~max_backwards_jump_s must be positive [s]");
   if (max_queue_events < 1) fail("~max_queue_events must be at least 1");
   if (!(status_period_s > 0)) fail("~status_period_s must be positive [s]");
   if (nice < 0 || nice > 19) fail("~nice must be in [0, 19]");
@@ -58,7 +57,6 @@ void MappingNode::readParameters() {
   params.read("cloud_period_s", &o.cloud_period_s);
   params.read("trajectory_margin_s", &o.trajectory_margin_s);
   params.read("keyframe_timeout_s", &o.keyframe_timeout_s);
-  params.read("max_backwards_jump_s", &o.max_backwards_jump_s);
   params.read("max_queue_events", &o.max_queue_events);
   params.read("status_period_s", &o.status_period_s);
   params.read("nice", &o.nice);
@@ -74,6 +72,7 @@ void MappingNode::readParameters() {
   global_map_options_.validate();
   T_base_cam_ = config.T_base_cam;
 
+  input_.setTimestampPolicy(config.input);
   input_.setBound(InputKind::kEvents, size_t(o.max_queue_events));
   input_.setBound(InputKind::kTrajectory, 1, Overflow::kReplaceOldest);
   if (!o.calibration_path.empty()) {
@@ -143,17 +142,17 @@ void MappingNode::workerLoop() {
   while (true) {
     std::deque<Input> inputs;
     if (!input_.takeAll(&inputs, std::chrono::milliseconds(100))) break;
-    std::deque<EventVector> batch;
+    std::deque<Packet> batch;
     std::shared_ptr<const BSpline> spline;  // the newest trajectory of the batch
     for (Input& input : inputs) {
       if (input.spline)
         spline = std::move(input.spline);
       else
-        batch.push_back(std::move(input.events));
+        batch.push_back(Packet{std::move(input.events), std::move(input.reset_why)});
     }
     const ros::WallTime start = ros::WallTime::now();
     try {
-      for (const EventVector& events : batch) handleEvents(events);
+      for (const Packet& p : batch) handleEvents(p.events, p.reset_why);
       if (spline) spline_ = spline;
       if (!batch.empty() || spline) mapCovered();
       if (mapper_->hasKeyframe() && node_options_.keyframe_timeout_s > 0 &&
@@ -179,17 +178,12 @@ void MappingNode::workerLoop() {
   }
 }
 
-void MappingNode::handleEvents(const EventVector& events) {
+void MappingNode::handleEvents(const EventVector& events, const std::string& reset_why) {
   last_events_wall_ = ros::WallTime::now();
-  int64_t oldest = events.front().t_ns;
-  for (const PixelEvent& e : events) oldest = std::min(oldest, e.t_ns);
-  if (newest_event_ns_ >= 0 &&
-      oldest < newest_event_ns_ - secToNs(node_options_.max_backwards_jump_s)) {
+  if (!reset_why.empty()) {
     ++resets_;
-    ROS_WARN(
-        "mapping_node: event time jumped back by %.3f s (%.3f -> %.3f s; a looped bag?): mapper, "
-        "global map and trajectory reset (reset %zu)",
-        dtSec(newest_event_ns_, oldest), nsToSec(newest_event_ns_), nsToSec(oldest), resets_);
+    ROS_WARN("mapping_node: %s: mapper, global map and trajectory reset (reset %zu)",
+             reset_why.c_str(), resets_);
     mapper_->reset();
     map_->clear();
     spline_.reset();

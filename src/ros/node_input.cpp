@@ -2,6 +2,7 @@
 
 #include <ros/console.h>
 
+#include <cmath>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -43,6 +44,12 @@ void NodeInputBase::setBound(InputKind kind, size_t bound, Overflow overflow) {
   bound_[size_t(kind)] = bound;
   overflow_[size_t(kind)] = overflow;
   used_[size_t(kind)] = true;
+}
+
+void NodeInputBase::setTimestampPolicy(const TimestampPolicyOptions& options) {
+  TimestampPolicy policy(options);  // validates, naming the input. key
+  std::lock_guard<std::mutex> order(events_mutex_);
+  timestamp_policy_ = policy;
 }
 
 void NodeInputBase::setCalibration(const CameraCalibration& calibration) {
@@ -92,8 +99,10 @@ bool NodeInputBase::hasCalibration() const {
   return have_calibration_;
 }
 
-bool NodeInputBase::acceptEventPacket(const EventArray& msg, EventVector* events) {
+bool NodeInputBase::acceptEventPacket(const EventArray& msg, EventVector* events,
+                                      std::string* reset_why) {
   events->clear();
+  reset_why->clear();
   int width = 0, height = 0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -144,6 +153,24 @@ bool NodeInputBase::acceptEventPacket(const EventArray& msg, EventVector* events
     ROS_WARN_THROTTLE(10, "%s: %zu events outside the %dx%d sensor dropped (%zu so far)",
                       node_.c_str(), stats.dropped, width, height, outside);
   }
+  if (events->empty()) return false;
+  // The timestamp policy, in arrival order (the caller holds events_mutex_ when it queues).
+  EventVector ordered;
+  const TimestampAction action = timestamp_policy_.process(*events, &ordered);
+  events->swap(ordered);
+  if (action == TimestampAction::kReset) *reset_why = timestamp_policy_.lastEvent();
+  const std::string warning = timestamp_policy_.takeWarning();
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    counters_.timestamps = timestamp_policy_.stats();
+    if (action == TimestampAction::kReset) counters_.last_reset = *reset_why;
+  }
+  if (!warning.empty()) {
+    std::istringstream lines(warning);
+    for (std::string line; std::getline(lines, line);)
+      ROS_WARN("%s: %s%s", node_.c_str(), line.c_str(),
+               line.find("reset at") != std::string::npos ? " (the node resets)" : "");
+  }
   return !events->empty();
 }
 
@@ -181,6 +208,17 @@ std::string NodeInputBase::statusLine() const {
       << " dropped=" << c.dropped << "; ";
   }
   s << "camera_info refused=" << counters_.camera_info_refused;
+  if (used_[size_t(InputKind::kEvents)]) {
+    const TimestampPolicyStats& t = counters_.timestamps;
+    s << "; overload thinned=" << counters_.events_thinned
+      << " episodes=" << counters_.thinning_episodes << " keep=1/" << counters_.thinning
+      << " max_queued=" << counters_.max_queued_events << "; timestamps jumps=" << t.backward_jumps
+      << " late=" << t.events_absorbed
+      << " largest_jump_ms=" << std::lround(t.largest_backward_jump_s * 1e3)
+      << " resets=" << t.resets << " resets_backward=" << t.resets_backward
+      << " resets_gap=" << t.resets_gap;
+    if (!counters_.last_reset.empty()) s << " last_reset=\"" << counters_.last_reset << "\"";
+  }
   return s.str();
 }
 
@@ -213,6 +251,46 @@ NodeInputBase::Push NodeInputBase::admitLocked(InputKind kind, size_t size) {
   if (overflow_[k] != Overflow::kRefuseNewest) return Push::kQueuedDroppedOldest;
   ++c.dropped;
   return Push::kFull;
+}
+
+void NodeInputBase::stepThinningLocked() {
+  counters_.thinning *= 2;
+  ++counters_.thinning_episodes;
+  ROS_WARN_THROTTLE(5,
+                    "%s: events queue full (%zu events), the worker cannot keep up: events "
+                    "thinned to 1/%zu, evenly in time (%zu thinned so far)",
+                    node_.c_str(), bound_[size_t(InputKind::kEvents)], counters_.thinning,
+                    counters_.events_thinned);
+}
+
+void NodeInputBase::thinArrivalLocked(EventVector* events) {
+  const size_t t = counters_.thinning;
+  if (t <= 1) return;
+  // Every t-th event, the phase running on across packets: the same fraction of every slice.
+  size_t kept = 0;
+  for (size_t i = 0; i < events->size(); ++i)
+    if ((thin_phase_ + i) % t == 0) (*events)[kept++] = (*events)[i];
+  thin_phase_ = (thin_phase_ + events->size()) % t;
+  if (kept == 0) kept = 1;  // a packet keeps at least one event (and a reset it carries)
+  counters_.events_thinned += events->size() - kept;
+  events->resize(kept);
+}
+
+void NodeInputBase::recoverThinningLocked(size_t taken_events) {
+  if (counters_.thinning > 1 && taken_events < bound_[size_t(InputKind::kEvents)] / 4) {
+    counters_.thinning /= 2;
+    ROS_INFO_THROTTLE(5, "%s: the worker caught up: events thinned to 1/%zu", node_.c_str(),
+                      counters_.thinning);
+  }
+}
+
+size_t NodeInputBase::halve(EventVector* events) {
+  const size_t n = events->size();
+  if (n < 2) return 0;
+  size_t kept = 0;
+  for (size_t i = 1; i < n; i += 2) (*events)[kept++] = (*events)[i];
+  events->resize(kept);
+  return n - kept;
 }
 
 void NodeInputBase::warnDropped(InputKind kind) {

@@ -8,6 +8,7 @@
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
 
 #include <algorithm>
 #include <functional>
@@ -37,8 +38,12 @@ struct StreamOptions {
   bool outside_events = false;         // add events outside the sensor to every packet
   bool late_packet = false;            // replay one packet 20 ms late (a small backwards jump)
   bool advance_clock = true;           // false: the data is expected to be refused
-  double odom_speed = -1;  // >= 0: also publish /odom (this speed, the true yaw rate) at 50 Hz
-  bool burst = false;      // publish as fast as possible instead of in real time
+  double odom_speed = -1;      // >= 0: also publish /odom (this speed, the true yaw rate) at 50 Hz
+  bool burst = false;          // publish as fast as possible instead of in real time
+  double rate_factor = 1.0;    // events per second: kEventsPerSecond x this
+  double packet_s = kPacketS;  // EventArray period [s] (0.3 s at 10x: 150 k events a packet)
+  int duplicate_every = 0;     // > 0: every Nth packet is published twice
+  int reorder_every = 0;       // > 0: every Nth packet swaps places with the next one
 };
 
 class Harness {
@@ -49,6 +54,7 @@ class Harness {
     events_pub_ = nh_.advertise<EventArray>(topics::kEvents, 2000);
     info_pub_ = nh_.advertise<sensor_msgs::CameraInfo>(topics::kCameraInfo, 10);
     odom_pub_ = nh_.advertise<nav_msgs::Odometry>(topics::kOdom, 1000);
+    imu_pub_ = nh_.advertise<sensor_msgs::Imu>(topics::kImu, 1000);
     arcs_sub_ = nh_.subscribe(topics::kArcs, 1000, &Harness::onArc, this);
     odom_sub_ = nh_.subscribe(topics::kFrontendOdom, 1000, &Harness::onOdom, this);
     iwe_sub_ = nh_.subscribe(topics::kFrontendIwe, 10, &Harness::onImage, this);
@@ -88,19 +94,20 @@ class Harness {
       const double span_s = std::min(1.0, nsToSec(t1 - c));
       const AckermannArcModel truth(kOmega, kV, c + secToNs(span_s / 2), T_base_cam_);
       const EventVector chunk = synthetic::randomPointEvents(
-          camera_, truth, int(kEventsPerSecond * span_s), unsigned(seed_++), span_s / 2, 600);
+          camera_, truth, int(kEventsPerSecond * o.rate_factor * span_s), unsigned(seed_++),
+          span_s / 2, 600);
       for (const PixelEvent& e : chunk)
         if (e.t_ns >= c && e.t_ns < t1 && e.x < o.width && e.y < o.height) events.push_back(e);
     }
     std::vector<EventArray> packets;
     size_t i = 0;
-    for (int64_t p = t0; p < t1; p += secToNs(kPacketS)) {
+    const int64_t packet_ns = secToNs(o.packet_s);
+    for (int64_t p = t0; p < t1; p += packet_ns) {
       EventArray msg;
       msg.width = o.width;
       msg.height = o.height;
       EventVector packet;
-      while (i < events.size() && events[i].t_ns < p + secToNs(kPacketS))
-        packet.push_back(events[i++]);
+      while (i < events.size() && events[i].t_ns < p + packet_ns) packet.push_back(events[i++]);
       if (packet.empty()) continue;
       if (o.outside_events)
         for (int k = 0; k < 5; ++k) {
@@ -113,6 +120,8 @@ class Harness {
       msg.header.stamp = toRosTime(packet.back().t_ns);
       packets.push_back(msg);
     }
+    for (size_t k = 1; o.reorder_every > 0 && k + 1 < packets.size(); ++k)
+      if (k % size_t(o.reorder_every) == 0) std::swap(packets[k], packets[k + 1]);
     ros::WallRate rate(1.0 / kPacketS);
     for (size_t k = 0; k < packets.size(); ++k) {
       if (o.odom_speed >= 0 &&
@@ -128,6 +137,8 @@ class Harness {
         odom_pub_.publish(odom);
       }
       events_pub_.publish(packets[k]);
+      if (o.duplicate_every > 0 && k % size_t(o.duplicate_every) == 0)
+        events_pub_.publish(packets[k]);
       if (o.empty_packets && k % 10 == 0) {
         EventArray empty;
         empty.header.stamp = packets[k].header.stamp;
@@ -136,10 +147,38 @@ class Harness {
         events_pub_.publish(empty);
       }
       if (o.late_packet && k == packets.size() / 2) events_pub_.publish(packets[k - 2]);
-      if (!o.burst) rate.sleep();
+      if (!o.burst) {
+        if (o.packet_s == kPacketS)
+          rate.sleep();
+        else
+          ros::WallDuration(o.packet_s).sleep();
+      }
     }
     if (o.advance_clock) clock_ns_ = t1;
     return {t0, t1};
+  }
+
+  /// One /odom and one /dvs/imu message at the data clock with the given twist and angular
+  /// velocity (NaN or Inf: what a node must refuse and count).
+  void publishOdomAndImu(double v, double yaw_rate) {
+    nav_msgs::Odometry odom;
+    odom.header.stamp = toRosTime(clock_ns_);
+    odom.header.frame_id = "odom";
+    odom.child_frame_id = "base_link";
+    odom.twist.twist.linear.x = v;
+    odom.twist.twist.angular.z = yaw_rate;
+    odom_pub_.publish(odom);
+    sensor_msgs::Imu imu;
+    imu.header.stamp = odom.header.stamp;
+    imu.header.frame_id = "davis";
+    imu.angular_velocity.x = imu.angular_velocity.y = imu.angular_velocity.z = yaw_rate;
+    imu_pub_.publish(imu);
+  }
+  bool waitForImuSubscriber(double timeout_s) {
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
+    while (ros::WallTime::now() < end && imu_pub_.getNumSubscribers() == 0)
+      ros::WallDuration(0.05).sleep();
+    return imu_pub_.getNumSubscribers() > 0;
   }
 
   /// Waits until at least min_count arcs with a reference time in [t0, t1) have arrived (or the
@@ -175,6 +214,13 @@ class Harness {
     std::lock_guard<std::mutex> lock(mutex_);
     return test::inputCounter(logs_, kind, key);
   }
+  /// The newest status line of the node (empty: none yet).
+  std::string statusLine() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto l = logs_.rbegin(); l != logs_.rend(); ++l)
+      if (l->msg.find("input: ") != std::string::npos) return l->msg;
+    return "";
+  }
   /// True once that counter exceeds `above` (the node logs its status every ~status_period_s).
   bool inputCounterAbove(const std::string& kind, const std::string& key, long above,
                          double timeout_s = 10.0) {
@@ -208,7 +254,7 @@ class Harness {
   }
 
   ros::NodeHandle nh_;
-  ros::Publisher events_pub_, info_pub_, odom_pub_;
+  ros::Publisher events_pub_, info_pub_, odom_pub_, imu_pub_;
   ros::Subscriber arcs_sub_, odom_sub_, iwe_sub_, rosout_sub_;
   CameraModel camera_;
   Pose3 T_base_cam_;

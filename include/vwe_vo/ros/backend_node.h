@@ -37,7 +37,6 @@ struct BackendNodeOptions {
   int max_queue_events = 5000000;  // ~max_queue_events: bound of the queued event packets [events]
   int max_queue_messages = 4000;   // ~max_queue_messages: bound of the queued arcs [messages]
   double odom_rate_hz = 20.0;      // ~odom_rate_hz: rate of /vwe/odom and the tf (data time) [Hz]
-  double max_gap_s = 2.0;          // ~max_gap_s: events or arcs this far apart reset [s]
   int path_max_poses = 2000;       // ~path_max_poses: newest poses kept in /vwe/path
   double status_period_s = 10.0;   // ~status_period_s: period of the one-line status [s]
   bool publish_tf = true;          // ~publish_tf: broadcast odom -> base_link
@@ -59,6 +58,7 @@ class BackendNode {
   struct Input {
     enum class Kind { kEvents, kArc } kind = Kind::kEvents;
     EventVector events;
+    std::string reset_why;  // the input's timestamp policy resets before these events
     ArcEstimate arc;
   };
 
@@ -68,7 +68,7 @@ class BackendNode {
   void arcCallback(const AckermannArc::ConstPtr& msg);
 
   void workerLoop();
-  void handleEvents(const EventVector& events);
+  void handleEvents(const EventVector& events, const std::string& reset_why);
   /// newest_pending_arc_ns: the newest arc of the batch (BackendDriver's processing rule).
   void handleArc(const ArcEstimate& arc, int64_t newest_pending_arc_ns);
   /// Resets the back-end and what was published from it (the odometry restarts at identity).
@@ -85,6 +85,7 @@ class BackendNode {
 
   BackendNodeOptions node_options_;
   BackendOptions backend_options_;
+  BackendDriverOptions driver_options_;  // ~odom_rate_hz; max_gap_s from the config's input:
   Pose3 T_base_cam_ = Pose3::Identity();
 
   NodeInput<Input> input_{"backend_node"};  // callbacks -> worker, open once calibrated

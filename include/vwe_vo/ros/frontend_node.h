@@ -61,6 +61,7 @@ class FrontendNode {
   struct Input {
     enum class Kind { kEvents, kOdometry, kGyro, kTrajectory } kind = Kind::kEvents;
     EventVector events;
+    std::string reset_why;  // the input's timestamp policy resets before these events
     int64_t t_ns = 0;
     double v = 0.0, yaw_rate = 0.0;
     std::shared_ptr<const BSpline> spline;  // kTrajectory
@@ -74,7 +75,7 @@ class FrontendNode {
   void trajectoryCallback(const SplineTrajectory::ConstPtr& msg);
 
   void workerLoop();
-  void handleEvents(const EventVector& events);
+  void handleEvents(const EventVector& events, const std::string& reset_why);
   /// Re-anchors the published dead reckoning on the refined spline's end and takes its speed
   /// (FrontendFollower).
   void handleTrajectory(const BSpline& spline);

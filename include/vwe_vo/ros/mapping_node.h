@@ -31,14 +31,13 @@ struct MappingNodeOptions {
   double cloud_period_s = 2.0;   // ~cloud_period_s: minimum period of /vwe/map/cloud [s]
   double trajectory_margin_s =
       0.2;  // ~trajectory_margin_s: map events older than valid_to - this [s]
-  double keyframe_timeout_s = 3.0;    // ~keyframe_timeout_s: close the open keyframe after this
-                                      // long without events (end of a bag) [wall s]; 0: never
-  double max_backwards_jump_s = 0.5;  // ~max_backwards_jump_s: events further back reset [s]
-  int max_queue_events = 10000000;    // ~max_queue_events: bound of the queued event packets
-                                      // (room for bursts while keyframes close) [events]
-  double status_period_s = 10.0;      // ~status_period_s: period of the one-line status [s]
-  int nice = 0;                       // ~nice: CPU priority (0..19; higher yields to the others)
-  void validate() const;              // throws std::invalid_argument naming the parameter
+  double keyframe_timeout_s = 3.0;  // ~keyframe_timeout_s: close the open keyframe after this
+                                    // long without events (end of a bag) [wall s]; 0: never
+  int max_queue_events = 10000000;  // ~max_queue_events: bound of the queued event packets
+                                    // (room for bursts while keyframes close) [events]
+  double status_period_s = 10.0;    // ~status_period_s: period of the one-line status [s]
+  int nice = 0;                     // ~nice: CPU priority (0..19; higher yields to the others)
+  void validate() const;            // throws std::invalid_argument naming the parameter
 };
 
 class MappingNode {
@@ -55,7 +54,12 @@ class MappingNode {
   /// One queued input, converted to core types by a callback.
   struct Input {
     EventVector events;                     // event packets
+    std::string reset_why;                  // the input's timestamp policy resets before these
     std::shared_ptr<const BSpline> spline;  // a trajectory (then events is empty)
+  };
+  struct Packet {
+    EventVector events;
+    std::string reset_why;
   };
 
   void readParameters();
@@ -64,7 +68,7 @@ class MappingNode {
   void trajectoryCallback(const SplineTrajectory::ConstPtr& msg);
 
   void workerLoop();
-  void handleEvents(const EventVector& events);
+  void handleEvents(const EventVector& events, const std::string& reset_why);
   void mapCovered();
   void handleKeyframe(const EmvsKeyframe& keyframe);
   void publishCloud();

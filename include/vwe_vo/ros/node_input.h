@@ -1,14 +1,26 @@
 // The input of every node: the hand-over between its ROS callbacks and its worker thread. It opens
 // once the camera calibration is known (~calibration, or the first valid camera_info), checks and
 // converts event packets (size against the calibration, events outside the sensor, header.seq
-// gaps), bounds the queue per input kind (event packets by their total events, every other kind by
-// its own message count, so that event packets never starve the IMU, odometry or trajectories),
-// counts everything refused or dropped per kind, and formats those counters for the node's status
-// line.
+// gaps), puts the event stamps through the pipeline's one timestamp policy
+// (sensor/timestamp_policy, the YAML input: section, as the offline runner does), bounds the queue
+// per input kind (event packets by their total events, every other kind by its own message count,
+// so that event packets never starve the IMU, odometry or trajectories), thins the queued events
+// when the worker falls behind (the overload policy below), counts everything refused, thinned or
+// dropped per kind, and formats those counters for the node's status line.
+//
+// Overload policy (docs/method.md, "Overload"): an event packet that would take the queue past its
+// bound thins the queue instead of being dropped: every queued packet keeps every second event
+// (time-uniform: the same fraction of every time slice, so no data time is lost and nothing
+// downstream sees a gap), and packets arriving afterwards are thinned to the same fraction, halved
+// again while the queue does not fit, down to 1 / kMaxThinning. The fraction doubles back each
+// time the worker has drained the queue below a quarter of its bound. Only a queue that is full at
+// 1 / kMaxThinning drops its oldest packets (counted as dropped). Memory stays below the bound:
+// at most bound x sizeof(PixelEvent) (16 bytes) queued, plus one packet being converted.
 #pragma once
 
 #include <sensor_msgs/CameraInfo.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <condition_variable>
@@ -21,6 +33,7 @@
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
+#include "vwe_vo/sensor/timestamp_policy.h"
 
 namespace vwe_vo {
 
@@ -38,6 +51,11 @@ enum class Overflow {
                    // about
 };
 
+/// The coarsest thinning of the overload policy: at least 1 event in 8 is kept. The front-end's
+/// standstill test counts events per second (frontend.standstill_event_rate_hz, 30 kev/s): at 1/8
+/// a scene of 240 kev/s or more still moves, and a DAVIS346 in a lit scene gives 1-5 Mev/s.
+constexpr size_t kMaxThinning = 8;
+
 /// The counters of one input kind.
 struct InputKindCounters {
   size_t in = 0;                  // messages that reached the callback
@@ -53,7 +71,13 @@ struct NodeInputCounters {
   size_t packets_empty = 0;       // event packets without events (counted in refused)
   size_t packets_wrong_size = 0;  // width x height not the calibration's (counted in refused)
   size_t events_outside = 0;      // events outside the packet's width x height, dropped
-  size_t camera_info_refused = 0;  // invalid camera_info, or one of another size than the first
+  size_t camera_info_refused = 0;   // invalid camera_info, or one of another size than the first
+  size_t events_thinned = 0;        // events removed by the overload policy's thinning
+  size_t thinning_episodes = 0;     // times the queue filled and the thinning stepped up
+  size_t thinning = 1;              // the current fraction kept is 1 / thinning
+  size_t max_queued_events = 0;     // the largest number of queued events seen
+  TimestampPolicyStats timestamps;  // the timestamp policy's counters
+  std::string last_reset;           // why the policy last reset (empty: never)
   const InputKindCounters& operator[](InputKind kind) const { return kinds[size_t(kind)]; }
 };
 
@@ -71,6 +95,10 @@ class NodeInputBase {
   /// other kind the number of queued messages. Unbounded until set. Call before the callbacks run.
   void setBound(InputKind kind, size_t bound, Overflow overflow = Overflow::kRefuseNewest);
 
+  /// The timestamp policy's options (the YAML input: section; defaults otherwise). Call before the
+  /// callbacks run; throws std::invalid_argument naming the input. key.
+  void setTimestampPolicy(const TimestampPolicyOptions& options);
+
   /// A calibration known at start-up (~calibration): the input opens at once.
   void setCalibration(const CameraCalibration& calibration);
   /// The camera_info callback. The first valid message opens the input (logged, with the number of
@@ -82,8 +110,11 @@ class NodeInputBase {
   /// The first half of the event-packet callback: counts the packet and any header.seq gap before
   /// it, refuses it without a calibration, when empty or when its width x height is not the
   /// calibration's, and converts it (events outside the sensor dropped). All counted and warned
-  /// about (throttled). False when nothing is left to queue.
-  bool acceptEventPacket(const EventArray& msg, EventVector* events);
+  /// about (throttled). Then the timestamp policy: events older than the newest are dropped and
+  /// counted, a large jump back or a long gap sets *reset_why (the worker resets its estimator
+  /// before these events); jumps and resets are warned about (jumps throttled by data time). False
+  /// when nothing is left to queue.
+  bool acceptEventPacket(const EventArray& msg, EventVector* events, std::string* reset_why);
 
   /// A message of `kind` the node's own check or conversion refused: counted as refused, and as
   /// in unless it had been queued (`queued`: refused by the worker after push()).
@@ -103,6 +134,16 @@ class NodeInputBase {
   void stop();
 
  protected:
+  /// The overload policy (mutex_ held): thins an arriving packet to the current fraction (every
+  /// k-th event, the phase running on across packets; counted).
+  void thinArrivalLocked(EventVector* events);
+  /// Halves the fraction kept (counted, warned about, throttled).
+  void stepThinningLocked();
+  /// After the worker took its batch (mutex_ held): the fraction recovers.
+  void recoverThinningLocked(size_t taken_events);
+  /// Keeps every second event of `events` (from the second: the first and the last events of a
+  /// packet keep their times within one event); returns the events removed.
+  static size_t halve(EventVector* events);
   /// Counts an arrival (event packets are counted by acceptEventPacket) and decides whether it may
   /// be queued; the caller holds mutex_. `size` is the item's weight against its kind's bound
   /// (events for kEvents, 1 otherwise); an item alone in its kind's queue always fits. Returns
@@ -123,6 +164,11 @@ class NodeInputBase {
   std::array<size_t, kNumInputKinds> queued_;  // weight queued per kind
   NodeInputCounters counters_;
   SequenceGapCounter packet_sequence_;  // header.seq of the event packets
+  // Event packets go through the policy and into the queue in arrival order (events_mutex_ is
+  // taken before mutex_).
+  std::mutex events_mutex_;
+  TimestampPolicy timestamp_policy_;  // guarded by events_mutex_
+  size_t thin_phase_ = 0;             // the arrivals' thinning phase (mutex_)
 };
 
 /// The node's queue of T (its own tagged input struct), on top of NodeInputBase.
@@ -164,15 +210,56 @@ class NodeInput : public NodeInputBase {
     return result;
   }
 
-  /// The whole event-packet callback: acceptEventPacket, then queues make(events) (a T) as
-  /// kEvents weighted by its events. True if queued.
+  /// The whole event-packet callback: acceptEventPacket, then queues make(events) (a T with the
+  /// members `EventVector events` and `std::string reset_why`, set from the timestamp policy) as
+  /// kEvents weighted by its events, under the overload policy. True if queued.
   template <typename Make>
   bool pushEventPacket(const EventArray& msg, Make&& make) {
+    std::lock_guard<std::mutex> order(events_mutex_);
     EventVector events;
-    if (!acceptEventPacket(msg, &events)) return false;
-    const size_t n = events.size();
-    const Push result = push(InputKind::kEvents, make(std::move(events)), n);
-    return result == Push::kQueued || result == Push::kQueuedDroppedOldest;
+    std::string reset_why;
+    if (!acceptEventPacket(msg, &events, &reset_why)) return false;
+    bool warn = false;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      constexpr size_t k = size_t(InputKind::kEvents);
+      if (!have_calibration_) return false;  // (the calibration cannot go away; for clarity)
+      thinArrivalLocked(&events);
+      // Overflow: everything queued and the arrival keep every second event, until it fits.
+      while (queued_[k] > 0 && queued_[k] + events.size() > bound_[k] &&
+             counters_.thinning < kMaxThinning) {
+        stepThinningLocked();
+        for (Slot& s : queue_) {
+          if (s.kind != InputKind::kEvents) continue;
+          const size_t removed = halve(&s.item.events);
+          s.size -= removed;
+          queued_[k] -= removed;
+          counters_.events_thinned += removed;
+        }
+        counters_.events_thinned += halve(&events);
+      }
+      // A queue still full at the coarsest thinning: the oldest packets go.
+      for (auto it = queue_.begin();
+           it != queue_.end() && queued_[k] > 0 && queued_[k] + events.size() > bound_[k];) {
+        if (it->kind == InputKind::kEvents) {
+          queued_[k] -= it->size;
+          ++counters_.kinds[k].dropped;
+          it = queue_.erase(it);
+          warn = true;
+        } else {
+          ++it;
+        }
+      }
+      const size_t n = events.size();
+      T item = make(std::move(events));
+      item.reset_why = std::move(reset_why);
+      queue_.push_back(Slot{InputKind::kEvents, n, std::move(item)});
+      queued_[k] += n;
+      counters_.max_queued_events = std::max(counters_.max_queued_events, queued_[k]);
+      cv_.notify_one();
+    }
+    if (warn) warnDropped(InputKind::kEvents);
+    return true;
   }
 
   /// Worker: everything queued, in arrival order (waiting up to `timeout` for something); false
@@ -184,6 +271,7 @@ class NodeInput : public NodeInputBase {
       cv_.wait_for(lock, timeout, [this] { return stop_ || !queue_.empty(); });
       if (stop_) return false;
       slots.swap(queue_);
+      recoverThinningLocked(queued_[size_t(InputKind::kEvents)]);
       queued_.fill(0);
     }
     batch->clear();
