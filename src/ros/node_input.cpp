@@ -303,7 +303,12 @@ void NodeInputBase::warnDropped(InputKind kind) {
     overflow = overflow_[size_t(kind)];
   }
   const char* unit = kind == InputKind::kEvents ? "events" : "messages";
-  if (overflow != Overflow::kRefuseNewest)
+  if (kind == InputKind::kEvents)
+    ROS_WARN_THROTTLE(5,
+                      "%s: events queue full (%zu events) at the coarsest thinning (1/%zu), the "
+                      "worker cannot keep up: oldest packets dropped (%zu so far)",
+                      node_.c_str(), bound, kMaxThinning, dropped);
+  else if (overflow != Overflow::kRefuseNewest)
     ROS_WARN_THROTTLE(
         5, "%s: %s queue full (%zu %s), the worker cannot keep up: oldest dropped (%zu so far)",
         node_.c_str(), inputKindName(kind), bound, unit, dropped);

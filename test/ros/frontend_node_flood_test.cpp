@@ -1,6 +1,6 @@
 // frontend_node under floods and faulty input (the overload policy and the input checks of
 // NodeInput): for each, memory stays bounded (the queued events never pass ~max_queue_events =
-// 60000, i.e. 60000 x 16 bytes = 0.96 MB, plus the packet being converted), what is thinned or
+// 100000, i.e. 100000 x 16 bytes = 1.6 MB, or one packet alone), what is thinned or
 // refused is counted, nothing is dropped, and true arcs come again within a window after it. Every
 // wait is for a condition (arcs by data time, a counter of the status line), with generous
 // timeouts; nothing depends on how fast the machine is.
@@ -12,7 +12,7 @@ using namespace vwe_vo;
 using namespace vwe_vo::test;
 
 namespace {
-constexpr long kBound = 60000;  // ~max_queue_events of the .test
+constexpr long kBound = 100000;  // ~max_queue_events of the .test
 
 /// A number of the front-end's own status line, e.g. "3 windows skipped behind" (-1: none).
 long statusNumber(const std::string& line, const std::string& after) {
