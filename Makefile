@@ -16,7 +16,7 @@ CCACHE ?= $(shell command -v ccache 2>/dev/null)
 LAUNCHER := $(if $(CCACHE),-DCMAKE_CXX_COMPILER_LAUNCHER=$(CCACHE),)
 export CCACHE_BASEDIR ?= $(abspath $(ROOT)/..)
 
-.PHONY: all deps build test test-sanitize fuzz bench demo sequences clean help format format-check
+.PHONY: all deps build test test-sanitize fuzz bench bench-live demo sequences clean help format format-check
 
 all: build
 
@@ -25,7 +25,8 @@ help:
 	@echo "make test   - install what is missing, build, run every gtest and rostest"
 	@echo "make test-sanitize - the core gtests built with ASan + UBSan (workspace .build/ws-asan)"
 	@echo "make fuzz   - libFuzzer harnesses of the readers and conversions, FUZZ_SECONDS (60) each"
-	@echo "make bench  - benchmarks, JSON in out/bench"
+	@echo "make bench  - benchmarks, JSON in out/bench (the live replays too: bench-live)"
+	@echo "make bench-live - the whole system replayed at rate 1 and 2 (CPU, drops, accuracy): out/bench/live.json"
 	@echo "make build  - build only (workspace in .build/ws)"
 	@echo "make format - apply .clang-format to every C++ file (format-check: only check)"
 	@echo "make clean  - remove .build"
@@ -100,6 +101,11 @@ fuzz: deps $(WS)/src/vwe_vo
 
 bench: build
 	@$(ENV) && bash $(ROOT)/scripts/run_bench.sh $(WS) $(ROOT)/out/bench
+
+# LIVE_ARGS: e.g. --nodelet both, --rates 1, --sequences-dir DIR (scripts/bench_live.py --help).
+LIVE_ARGS ?=
+bench-live: build
+	@$(ENV) && /usr/bin/python3 $(ROOT)/scripts/bench_live.py --out $(ROOT)/out/bench $(LIVE_ARGS)
 
 demo: build
 	@$(ENV) && bash $(ROOT)/scripts/demo.sh

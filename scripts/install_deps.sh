@@ -19,7 +19,8 @@ if [ -f /opt/ros/noetic/setup.bash ]; then
   log "found /opt/ros/noetic: using it (Ubuntu 20.04 + Noetic)"
   pkgs=("${common_pkgs[@]}" ros-noetic-ros-base ros-noetic-rosbag ros-noetic-tf2-ros
         ros-noetic-tf2-eigen ros-noetic-tf2-geometry-msgs ros-noetic-nav-msgs
-        ros-noetic-sensor-msgs ros-noetic-rostest ros-noetic-rviz)
+        ros-noetic-sensor-msgs ros-noetic-rostest ros-noetic-rviz ros-noetic-nodelet
+        ros-noetic-pluginlib)
 else
   log "using Debian's ROS 1 packages (no /opt/ros/noetic)"
   pkgs=("${common_pkgs[@]}" ros-core-dev catkin libroscpp-dev librosbag-dev
@@ -27,7 +28,8 @@ else
         libsensor-msgs-dev libnav-msgs-dev libgeometry-msgs-dev libvisualization-msgs-dev
         libstd-msgs-dev ros-message-generation python3-rostest python3-rosbag rosbash
         rviz ros-robot-state-publisher python3-geometry-msgs python3-nav-msgs
-        python3-tf2-ros libclang-rt-14-dev)
+        python3-tf2-ros libclang-rt-14-dev libnodeletlib-dev libnodeletlib-tools python3-nodelet
+        pluginlib-dev)
 fi
 
 missing=()

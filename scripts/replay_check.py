@@ -1,15 +1,18 @@
 #!/usr/bin/python3
 """Replays a bag through launch/replay.launch (rviz off) and reports how the live system did:
 the rotation RMSE of /vwe/odom against the bag's /gt/pose (relative pose error over 1 s, by the
-core evaluator vwe_vo_eval) and the counters of what each node dropped (front-end windows skipped
-behind, input queues full, event packets that never reached a node, mapper events dropped).
+core evaluator vwe_vo_eval), the ATE in % of the path, the counters of what each node dropped
+(front-end windows skipped behind, input queues full, event packets that never reached a node,
+mapper events dropped, resets) and the CPU each process used per second of data: with nodelets
+(replay.launch's default) the manager process runs every node, and the CPU of each node's worker
+thread is told apart by its name; with `-- nodelet:=false` each node is its own process.
 
     source scripts/ros_env.sh
     scripts/replay_check.py BAG [--rate 1.0] [--out DIR] [-- extra replay.launch args, e.g. use_odom:=true]
 
 It starts its own roslaunch (and a master if none runs), waits until the bag has played and the
-nodes are done, reads each node's final status line from /rosout, stops the launch and prints a
-summary; DIR (default: a temporary directory) keeps odom.tum, gt.tum, eval.json, summary.json
+nodes are done, reads each node's final status line from /rosout (by its "NAME: " prefix: in a
+nodelet manager every node logs under the manager's name), stops the launch and prints a summary; DIR (default: a temporary directory) keeps odom.tum, gt.tum, eval.json, summary.json
 and roslaunch.log. Exit code 0 when the evaluation ran, 1 otherwise.
 """
 import argparse
@@ -31,6 +34,7 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Log
 
 NODES = ("frontend_node", "backend_node", "mapping_node")
+MANAGER = "vwe_vo_manager"  # launch/nodes.launch's nodelet manager
 STATUS_PERIOD_S = 2.0
 
 # Counters of the nodes' status lines (src/ros/*_node.cpp logStatus()).
@@ -44,9 +48,6 @@ PATTERNS = {
         "arcs_ok": r"\((\d+) ok,",
         "windows_lost": r"(\d+) lost,",
         "windows_skipped_behind": r"(\d+) windows skipped behind",
-        "packets_in": r"packets (\d+) \(",
-        "packets_lost_seq": r"(\d+) lost before the node",
-        "packets_queue_full": r"(\d+) queue full\)",
         "resets": r"(\d+) resets",
         "real_time_factor": r"real-time factor ([0-9.]+)",
     },
@@ -54,21 +55,34 @@ PATTERNS = {
         "refinements": r"backend_node: (\d+) refinements",
         "arcs_in": r"(\d+) arcs in",
         "arcs_lost_held": r"(\d+) lost/low held",
-        "packets_in": r"(\d+) packets \(",
-        "packets_lost_seq": r"(\d+) lost before the node",
-        "inputs_queue_full": r"(\d+) queue full",
         "resets": r"(\d+) resets",
     },
     "mapping_node": {
         "keyframes": r"mapping_node: (\d+) keyframes",
         "events_dropped_waiting": r"(\d+) dropped waiting",
         "events_not_covered": r"(\d+) not covered by the trajectory",
-        "packets_in": r"packets (\d+) \(",
-        "packets_lost_seq": r"(\d+) lost before the node",
-        "packets_queue_full": r"(\d+) queue full",
+        "events_thinned": r"(\d+) thinned",
         "resets": r"(\d+) resets",
     },
 }
+
+
+def parse_input(text):
+    """The input counters of a status line (NodeInputBase::statusLine(): "input: events in=120
+    lost=0 ... dropped=0; odom in=60 ...; camera_info refused=0") as {kind: {key: value}}."""
+    m = re.search(r"input: (.*)$", text)
+    kinds = {}
+    for part in (m.group(1).split(";") if m else []):
+        tokens = part.split()
+        if len(tokens) < 2:
+            continue
+        fields = {}
+        for kv in tokens[1:]:
+            k, _, v = kv.partition("=")
+            if v.isdigit():
+                fields[k] = int(v)
+        kinds[tokens[0]] = fields
+    return kinds
 
 
 def parse_status(node, text):
@@ -77,6 +91,15 @@ def parse_status(node, text):
         m = re.search(pattern, text)
         if m:
             out[key] = float(m.group(1)) if "." in m.group(1) else int(m.group(1))
+    kinds = parse_input(text)
+    events = kinds.get("events", {})
+    if "in" in events:
+        out["packets_in"] = events["in"]
+    if "lost" in events:
+        out["packets_lost_seq"] = events["lost"]  # header.seq gaps: lost before the callback
+    # Inputs lost to a full queue, every kind together (events: packets).
+    out["queue_full"] = sum(k.get("dropped", 0) for name, k in kinds.items() if name != "camera_info")
+    out["input"] = kinds
     return out
 
 
@@ -100,23 +123,42 @@ class Recorder:
             self.gt.append((m.header.stamp.to_sec(), m.pose))
 
     def on_log(self, m):
-        node = m.name.lstrip("/")
+        # By the message's own prefix: nodelets log under the manager's node name.
+        node = m.msg.split(":", 1)[0]
         if node in NODES and re.search(list(PATTERNS[node].values())[0], m.msg):  # a status line
             with self.lock:
                 self.status[node] = (time.time(), m.msg)
 
 
-def node_cpu_s(node):
-    """CPU seconds (user + system, all threads) the node's process has used so far, or None."""
+def node_pid(node):
+    """The process id of a ROS node on this machine, or None."""
     try:
         import rosnode
         import xmlrpc.client
         uri = rosnode.get_api_uri(rosgraph.Master("/replay_check"), "/" + node, skip_cache=True)
         _, _, pid = xmlrpc.client.ServerProxy(uri).getPid("/replay_check")
-        with open("/proc/%d/stat" % pid) as f:
-            fields = f.read().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        return pid
     except Exception:  # the node is gone or on another machine
+        return None
+
+
+def stat_cpu_s(path):
+    """CPU seconds (user + system) of a /proc/.../stat file (a process: all its threads)."""
+    with open(path) as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def process_cpu(pid):
+    """{"cpu_s": the process's CPU seconds, "threads": {thread name: CPU seconds}} or None."""
+    try:
+        threads = {}
+        for tid in os.listdir("/proc/%d/task" % pid):
+            with open("/proc/%d/task/%s/comm" % (pid, tid)) as f:
+                name = f.read().strip()
+            threads[name] = threads.get(name, 0.0) + stat_cpu_s("/proc/%d/task/%s/stat" % (pid, tid))
+        return {"cpu_s": stat_cpu_s("/proc/%d/stat" % pid), "threads": threads}
+    except (OSError, ValueError):
         return None
 
 
@@ -186,7 +228,8 @@ def main():
         done = time.time()
         wait(lambda: all(n in rec.status and rec.status[n][0] > done for n in NODES), 3 * STATUS_PERIOD_S + 5)
         wall = done - wall0
-        cpu = {n: node_cpu_s(n) for n in NODES}
+        pids = {n: node_pid(n) for n in NODES + (MANAGER,)}
+        cpu = {pid: process_cpu(pid) for pid in set(pids.values()) if pid is not None}
         load = os.getloadavg()
     finally:
         if launch.poll() is None:
@@ -205,14 +248,28 @@ def main():
                "bag_duration_s": round(duration_s, 3), "bag_event_packets": packets,
                "gt_poses": {"bag": gt_count, "received": len(gt)}, "odom_messages": len(odom),
                "load_average": [round(x, 2) for x in load], "nodes": {}}
+    # With nodelets the nodes run in the manager, and each node's name is its small `nodelet load`
+    # process (counted in the total too).
+    nodelets = pids.get(MANAGER) is not None
+    summary["nodelet"] = nodelets
+    summary["processes"] = {}
+    for n in (MANAGER,) + NODES:
+        if pids[n] is not None and cpu.get(pids[n]) is not None:
+            summary["processes"][n] = {"cpu_s": round(cpu[pids[n]]["cpu_s"], 1),
+                                       "cpu_per_data_s": round(cpu[pids[n]]["cpu_s"] / duration_s, 3)}
+    summary["total_cpu_per_data_s"] = round(sum(p["cpu_s"] for p in summary["processes"].values())
+                                            / duration_s, 3)
     for n in NODES:
         if n in status:
             c = parse_status(n, status[n][1])
             if "packets_in" in c:
                 c["packets_lost_before_node"] = packets - c["packets_in"]
-            if cpu[n] is not None:
-                c["cpu_s"] = round(cpu[n], 1)
-                c["cpu_per_data_s"] = round(cpu[n] / duration_s, 2)
+            proc = cpu.get(pids[MANAGER] if nodelets else pids[n])
+            if not nodelets and proc is not None:  # the node's process, all its threads
+                c["cpu_s"] = round(proc["cpu_s"], 1)
+                c["cpu_per_data_s"] = round(proc["cpu_s"] / duration_s, 3)
+            if proc is not None and n in proc["threads"]:  # its worker thread (named after it)
+                c["worker_cpu_per_data_s"] = round(proc["threads"][n] / duration_s, 3)
             summary["nodes"][n] = c
         else:
             summary["nodes"][n] = None
@@ -245,10 +302,13 @@ def main():
         print("  /vwe/odom vs /gt/pose: rotation RMSE %.3f deg/s (median %.3f) over 1 s, ATE %.2f %% of path, "
               "tracked %.0f %%" % (summary["rpe_rot_rmse_deg_s"], summary["rpe_rot_median_deg_s"],
                                    summary["ate_percent_of_path"], 100 * summary["tracked_fraction"]))
+    print("  CPU per data-second, all nodes: %.3f core-s (%s)" % (
+        summary["total_cpu_per_data_s"], ", ".join("%s %.3f" % (n, p["cpu_per_data_s"])
+                                                    for n, p in summary["processes"].items())))
     for n in NODES:
         c = summary["nodes"][n]
         print("  %-14s %s" % (n, "no status line seen" if c is None else
-                              ", ".join("%s %s" % (k, v) for k, v in c.items())))
+                              ", ".join("%s %s" % (k, v) for k, v in c.items() if k != "input")))
     return 0 if ok else 1
 
 

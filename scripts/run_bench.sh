@@ -22,4 +22,8 @@ done
 if [ "$filter" = "." ] || [[ "pipeline" =~ $filter ]]; then
   /usr/bin/python3 "$(dirname "$0")/bench_pipeline.py" --ws "$ws" --out "$out"
 fi
+# The whole system live: replay_check at rate 1 and 2 (CPU per node, drops, /vwe/odom accuracy).
+if [ "$filter" = "." ] || [[ "live" =~ $filter ]]; then
+  /usr/bin/python3 "$(dirname "$0")/bench_live.py" --out "$out"
+fi
 echo "[bench] JSON results in $out"

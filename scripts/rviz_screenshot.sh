@@ -1,10 +1,14 @@
 #!/bin/bash
 # Replays a bag with rviz on a virtual display (Xvfb) and takes a screenshot of the whole screen.
-#   scripts/rviz_screenshot.sh BAG [OUT.png] [WAIT_S=25] [extra replay.launch args...]
+#   scripts/rviz_screenshot.sh BAG [OUT.png] [WAIT_S=25|end] [extra replay.launch args...]
+# WAIT_S=end: at the end of the replay (the bag's duration / rate:=, plus the start-up delay).
 # e.g. (a short simulated bag):
 #   source scripts/ros_env.sh
 #   .build/ws/devel/lib/vwe_vo/vwe_vo_sim --sequence indoor_circle --format bag --duration 8 --out /tmp/sysbag
 #   scripts/rviz_screenshot.sh /tmp/sysbag/indoor_circle.bag /tmp/rviz.png
+# a car on a street, the view following it (rviz/vwe_vo_car.rviz):
+#   scripts/rviz_screenshot.sh out/sequences/street_long/street_long.bag /tmp/street.png end \
+#       platform:=car config:=$PWD/config/car.yaml use_odom:=true
 # Needs xvfb and imagemagick. Ends only the processes it started (Xvfb, roscore, roslaunch).
 bag="${1:?usage: $0 BAG [OUT.png] [WAIT_S] [replay.launch args...]}"
 out="${2:-rviz_screenshot.png}"
@@ -20,7 +24,16 @@ done
 [ -f "$bag" ] || { echo "rviz_screenshot: no bag $bag"; exit 1; }
 bag="$(realpath "$bag")"  # rosbag play runs in ~/.ros: a relative path would not open
 
-display=":99"
+# The first free display from :99 (another Xvfb may hold one).
+n=99
+while [ -e "/tmp/.X$n-lock" ] || [ -e "/tmp/.X11-unix/X$n" ]; do n=$((n + 1)); done
+display=":$n"
+if [ "$wait_s" = end ]; then
+  rate=1
+  for a in "$@"; do case "$a" in rate:=*) rate="${a#rate:=}";; esac; done
+  duration=$(/usr/bin/python3 -c "import rosbag,sys; b=rosbag.Bag(sys.argv[1]); print(b.get_end_time()-b.get_start_time())" "$bag")
+  wait_s=$(/usr/bin/python3 -c "print(round($duration / $rate + 3 + 8))")  # replay.launch's delay of 3 s, start-up
+fi
 port=$(( 11700 + RANDOM % 200 ))  # a private master: never the user's roscore
 export ROS_MASTER_URI="http://localhost:$port"
 log_dir="$(mktemp -d /tmp/rviz_screenshot.XXXXXX)"

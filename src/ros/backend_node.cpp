@@ -13,6 +13,7 @@
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/param_loader.h"
 #include "vwe_vo/ros/process_priority.h"
+#include "vwe_vo/ros/shared_msg.h"
 #include "vwe_vo/ros/topics.h"
 
 namespace vwe_vo {
@@ -27,8 +28,8 @@ void BackendNodeOptions::validate() const {
   if (nice < 0 || nice > 19) fail("~nice must be in [0, 19]");
 }
 
-BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
-    : nh_(nh), pnh_(pnh) {
+BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, Hosting hosting)
+    : nh_(nh), pnh_(pnh), hosting_(hosting) {
   readParameters();
   events_sub_ = nh_.subscribe(topics::kEvents, 1000, &BackendNode::eventsCallback, this);
   camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &BackendNode::cameraInfoCallback, this);
@@ -41,7 +42,6 @@ BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
   if (!input_.hasCalibration())
     ROS_INFO("backend_node: waiting for %s (no ~calibration given)",
              camera_info_sub_.getTopic().c_str());
-  lowerCpuPriority(node_options_.nice, "backend_node");  // before the worker: it inherits it
   worker_ = std::thread(&BackendNode::workerLoop, this);
 }
 
@@ -120,6 +120,8 @@ void BackendNode::arcCallback(const AckermannArc::ConstPtr& msg) {
 // Worker: the only thread that touches the back-end.
 
 void BackendNode::workerLoop() {
+  nameThisThread("backend_node");
+  lowerCpuPriority(node_options_.nice, "backend_node", hosting_);
   CameraCalibration calibration;
   if (!input_.waitForCalibration(&calibration)) return;
   try {
@@ -206,7 +208,7 @@ void BackendNode::publishRefinement(size_t merged) {
         merged + 1, driver_->stats().refinements_merged);
   if (!backend_->hasSpline()) return;
   const BSpline& spline = backend_->spline();
-  trajectory_pub_.publish(splineToMsg(spline, backend_->firstFree(), frames::kOdom));
+  trajectory_pub_.publish(sharedMsg(splineToMsg(spline, backend_->firstFree(), frames::kOdom)));
   // The path: the refined spline, newest path_max_poses at the odometry rate.
   const Trajectory3 traj = backend_->sampleTrajectory(node_options_.odom_rate_hz);
   const size_t n = std::min(traj.size(), size_t(node_options_.path_max_poses));
@@ -218,7 +220,7 @@ void BackendNode::publishRefinement(size_t merged) {
     path_.poses[i].header.stamp = toRosTime(s.t_ns);
     path_.poses[i].pose = poseToMsg(s.T);
   }
-  path_pub_.publish(path_);
+  path_pub_.publish(sharedMsg(nav_msgs::Path(path_)));
 }
 
 void BackendNode::publishOdometry(int64_t t_ns, const Pose3& T, double v, double omega) {
@@ -229,7 +231,6 @@ void BackendNode::publishOdometry(int64_t t_ns, const Pose3& T, double v, double
   odom.pose.pose = poseToMsg(T);
   odom.twist.twist.linear.x = v;
   odom.twist.twist.angular.z = omega;
-  odom_pub_.publish(odom);
   if (tf_) {
     geometry_msgs::TransformStamped tf;
     tf.header = odom.header;
@@ -237,6 +238,7 @@ void BackendNode::publishOdometry(int64_t t_ns, const Pose3& T, double v, double
     tf.transform = transformToMsg(T);
     tf_->sendTransform(tf);
   }
+  odom_pub_.publish(sharedMsg(std::move(odom)));
 }
 
 void BackendNode::logStatus() {

@@ -8,6 +8,8 @@
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/param_loader.h"
+#include "vwe_vo/ros/process_priority.h"
+#include "vwe_vo/ros/shared_msg.h"
 #include "vwe_vo/ros/topics.h"
 
 namespace vwe_vo {
@@ -114,6 +116,7 @@ void FrameBaselineNode::odomCallback(const nav_msgs::Odometry::ConstPtr& msg) {
 }
 
 void FrameBaselineNode::workerLoop() {
+  nameThisThread("frame_baseline");
   CameraCalibration calibration;
   if (!input_.waitForCalibration(&calibration)) return;
   try {
@@ -167,11 +170,11 @@ void FrameBaselineNode::handleFrame(const Input& input) {
     odom.pose.pose = poseToMsg(baseline_->chain().T_odom_base(e.t_ns));
     odom.twist.twist.linear.x = e.v;
     odom.twist.twist.angular.z = e.omega;
-    odom_pub_.publish(odom);
+    odom_pub_.publish(sharedMsg(std::move(odom)));
   }
   if (tracks_pub_.getNumSubscribers() > 0) {
     const cv::Mat img = baseline_->debugImage();
-    if (!img.empty()) tracks_pub_.publish(imageToMsg(img, e.t_ns, frames::kCamera));
+    if (!img.empty()) tracks_pub_.publish(sharedMsg(imageToMsg(img, e.t_ns, frames::kCamera)));
   }
 }
 

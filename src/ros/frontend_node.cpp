@@ -11,6 +11,8 @@
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/param_loader.h"
+#include "vwe_vo/ros/process_priority.h"
+#include "vwe_vo/ros/shared_msg.h"
 #include "vwe_vo/ros/topics.h"
 #include "vwe_vo/sensor/subsample.h"
 #include "vwe_vo/trajectory/ackermann_arc.h"
@@ -197,6 +199,7 @@ void FrontendNode::trajectoryCallback(const SplineTrajectory::ConstPtr& msg) {
 // Worker: the only thread that touches the front-end.
 
 void FrontendNode::workerLoop() {
+  nameThisThread("frontend_node");
   CameraCalibration calibration;
   if (!input_.waitForCalibration(&calibration)) return;
   try {
@@ -322,7 +325,7 @@ void FrontendNode::publishArc(const ArcEstimate& arc) {
       break;
   }
   processed_data_s_ += dtSec(arc.t_end_ns, arc.t_start_ns);
-  arcs_pub_.publish(arcToMsg(arc, frames::kBase));
+  arcs_pub_.publish(sharedMsg(arcToMsg(arc, frames::kBase)));
 
   nav_msgs::Odometry odom;
   odom.header.stamp = toRosTime(arc.t_end_ns);
@@ -331,7 +334,7 @@ void FrontendNode::publishArc(const ArcEstimate& arc) {
   odom.pose.pose = poseToMsg(anchoredPose(arc.t_end_ns));
   odom.twist.twist.linear.x = arc.v;
   odom.twist.twist.angular.z = arc.omega;
-  odom_pub_.publish(odom);
+  odom_pub_.publish(sharedMsg(std::move(odom)));
 
   if (iwe_pub_.getNumSubscribers() > 0) publishImage(arc);
 }
@@ -359,7 +362,7 @@ void FrontendNode::publishImage(const ArcEstimate& arc) {
   msg.data.resize(size_t(image.rows) * image.cols);
   for (int y = 0; y < image.rows; ++y)
     std::copy_n(image.ptr<uint8_t>(y), image.cols, &msg.data[size_t(y) * image.cols]);
-  iwe_pub_.publish(msg);
+  iwe_pub_.publish(sharedMsg(std::move(msg)));
 }
 
 void FrontendNode::logStatus() {

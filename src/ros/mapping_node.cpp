@@ -13,6 +13,7 @@
 #include "vwe_vo/ros/conversions.h"
 #include "vwe_vo/ros/param_loader.h"
 #include "vwe_vo/ros/process_priority.h"
+#include "vwe_vo/ros/shared_msg.h"
 #include "vwe_vo/ros/topics.h"
 
 namespace vwe_vo {
@@ -28,8 +29,8 @@ void MappingNodeOptions::validate() const {
   if (nice < 0 || nice > 19) fail("~nice must be in [0, 19]");
 }
 
-MappingNode::MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
-    : nh_(nh), pnh_(pnh) {
+MappingNode::MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, Hosting hosting)
+    : nh_(nh), pnh_(pnh), hosting_(hosting) {
   readParameters();
   events_sub_ = nh_.subscribe(topics::kEvents, 1000, &MappingNode::eventsCallback, this);
   camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &MappingNode::cameraInfoCallback, this);
@@ -40,7 +41,6 @@ MappingNode::MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
   if (!input_.hasCalibration())
     ROS_INFO("mapping_node: waiting for %s (no ~calibration given)",
              camera_info_sub_.getTopic().c_str());
-  lowerCpuPriority(node_options_.nice, "mapping_node");  // before the worker: it inherits it
   worker_ = std::thread(&MappingNode::workerLoop, this);
 }
 
@@ -128,6 +128,8 @@ void MappingNode::trajectoryCallback(const SplineTrajectory::ConstPtr& msg) {
 // Worker: the only thread that touches the mapper and the global map.
 
 void MappingNode::workerLoop() {
+  nameThisThread("mapping_node");
+  lowerCpuPriority(node_options_.nice, "mapping_node", hosting_);
   CameraCalibration calibration;
   if (!input_.waitForCalibration(&calibration)) return;
   try {
@@ -243,9 +245,9 @@ void MappingNode::handleKeyframe(const EmvsKeyframe& kf) {
     reported_skipped_nan_ = counts_.skipped_nan;
   }
   if (depth_pub_.getNumSubscribers() > 0 && !kf.depth_m.empty())
-    depth_pub_.publish(imageToMsg(
+    depth_pub_.publish(sharedMsg(imageToMsg(
         colorizeDepth(kf.depth_m, emvs_options_.volume.z_min_m, emvs_options_.volume.z_max_m),
-        kf.t_kf_ns, frames::kCamera));
+        kf.t_kf_ns, frames::kCamera)));
   if (kf.points_odom.empty()) {
     ++keyframes_empty_;
     ROS_WARN_THROTTLE(10,
@@ -254,7 +256,7 @@ void MappingNode::handleKeyframe(const EmvsKeyframe& kf) {
                       nsToSec(kf.t_kf_ns), c.voted, keyframes_empty_, keyframes_);
     return;
   }
-  points_pub_.publish(cloudToMsg(kf.points_odom, frames::kOdom, kf.t_kf_ns));
+  points_pub_.publish(sharedMsg(cloudToMsg(kf.points_odom, frames::kOdom, kf.t_kf_ns)));
   map_->insert(kf.points_odom);
   map_changed_ = true;
 }
@@ -262,7 +264,7 @@ void MappingNode::handleKeyframe(const EmvsKeyframe& kf) {
 void MappingNode::publishCloud() {
   map_changed_ = false;
   cloud_pub_.publish(
-      cloudToMsg(map_->points(), frames::kOdom, std::max<int64_t>(0, newest_event_ns_)));
+      sharedMsg(cloudToMsg(map_->points(), frames::kOdom, std::max<int64_t>(0, newest_event_ns_))));
 }
 
 void MappingNode::logStatus() {

@@ -1,17 +1,27 @@
 // End to end: the whole system as users start it, `roslaunch vwe_vo replay.launch
 // bag:=... rviz:=false` (rosbag play --clock at rate 1, /use_sim_time, frontend_node,
 // backend_node, mapping_node, gt_path.py), on a simulated indoor_circle bag of 6 s that the test
-// generates into a temporary directory. The path must grow, the tf tree and the point clouds must
-// appear, and /vwe/odom must be as accurate against /gt/pose as the offline runner on the same bag
-// (rotation RMSE of the relative pose error over 1 s, the core evaluator) plus 20 %.
+// generates into a temporary directory, played twice: with the nodes as nodelets in one manager
+// (the default) and with nodelet:=false (one process per node). Each way the path must grow, the
+// tf tree and the point clouds must appear, and /vwe/odom must be as accurate against /gt/pose as
+// the offline runner on the same bag (rotation RMSE of the relative pose error over 1 s, the core
+// evaluator) plus 35 %, the last /vwe/path as the offline back-end plus 20 %. With nodelets, the
+// graph must show one process running every stage: the manager publishes the arcs, and takes the
+// event packets over one connection and the arcs over an intra-process one.
 #include <nav_msgs/Path.h>
+#include <ros/network.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
+#include <xmlrpcpp/XmlRpcClient.h>
 
 #include <cmath>
+#include <map>
 #include <memory>
+#include <set>
+#include <string>
+#include <vector>
 
 #include "bag_replay.h"
 #include "vwe_vo/ros/topics.h"
@@ -22,13 +32,25 @@ using namespace vwe_vo::test;
 namespace {
 
 constexpr double kBagDurationS = 6.0;
+constexpr char kManager[] = "/vwe_vo_manager";  // launch/nodes.launch's nodelet manager
 
-struct Replay {
+/// The bag and the offline runner's results on it, made once for both ways of running.
+struct Bag {
   std::unique_ptr<TempDir> dir;
   SimulatedBag bag;
   Trajectory3 offline_backend;   // vwe_vo_offline's backend.tum of the same bag
   Trajectory3 offline_frontend;  // ... and its frontend.tum
   Trajectory3 offline_odom;      // ... and its odom.tum (what backend_node publishes, offline)
+  std::string error;             // why the bag or the offline run could not be made
+};
+
+/// One inbound connection of a node (the slave API's getBusInfo).
+struct Connection {
+  std::string topic, transport;  // transport: TCPROS, UDPROS or INTRAPROCESS
+};
+
+struct Replay {
+  const Bag* bag = nullptr;
   std::vector<nav_msgs::Odometry> odoms;
   std::vector<geometry_msgs::PoseStamped> gt;
   std::vector<nav_msgs::Path> paths;
@@ -36,10 +58,14 @@ struct Replay {
   bool base_ok = false, camera_ok = false;
   ros::Time last_odom_stamp;
   std::string tf_error, launch_log;
+  std::set<std::string> nodes;                  // the graph's nodes while the bag played
+  std::vector<std::string> arcs_publishers;     // who published /vwe/arcs
+  std::vector<std::string> events_subscribers;  // who subscribed to /dvs/events
+  std::vector<Connection> manager_inbound;      // the manager's inbound connections, mid-bag
   std::string error;  // why the system could not be run on the bag (empty: it was)
 };
 
-void runOffline(Replay* r) {
+void runOffline(Bag* r) {
   const std::string out = r->dir->path() + "/offline", log = r->dir->path() + "/offline.log";
   const int rc = runToEnd(
       {toolPath("vwe_vo_offline"), "--bag", r->bag.bag_path, "--out", out, "--no-map", "--quiet"},
@@ -52,11 +78,57 @@ void runOffline(Replay* r) {
   r->offline_odom = readTum(out + "/odom.tum");
 }
 
-void playBag(ros::NodeHandle& nh, Replay* replay) {
+/// Nodes, publishers of `published` and subscribers of `subscribed` (the master's getSystemState).
+void readGraph(const std::string& published, const std::string& subscribed, Replay* r) {
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  if (!ros::master::execute("getSystemState", args, result, payload, true)) return;
+  const auto names = [](XmlRpc::XmlRpcValue& list) {
+    std::vector<std::string> out;
+    for (int i = 0; i < list.size(); ++i) out.push_back(std::string(list[i]));
+    return out;
+  };
+  for (int kind = 0; kind < 3; ++kind)  // publishers, subscribers, services
+    for (int i = 0; i < payload[kind].size(); ++i) {
+      const std::string topic = payload[kind][i][0];
+      const std::vector<std::string> nodes = names(payload[kind][i][1]);
+      r->nodes.insert(nodes.begin(), nodes.end());
+      if (kind == 0 && topic == published) r->arcs_publishers = nodes;
+      if (kind == 1 && topic == subscribed) r->events_subscribers = nodes;
+    }
+}
+
+/// The inbound connections of `node` (its slave API's getBusInfo); empty if it does not run.
+std::vector<Connection> inboundConnections(const std::string& node) {
+  std::vector<Connection> out;
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  args[1] = node;
+  if (!ros::master::execute("lookupNode", args, result, payload, false)) return out;
+  std::string host;
+  uint32_t port = 0;
+  if (!ros::network::splitURI(std::string(payload), host, port)) return out;
+  XmlRpc::XmlRpcClient client(host.c_str(), int(port), "/");
+  XmlRpc::XmlRpcValue request, response;
+  request[0] = ros::this_node::getName();
+  if (!client.execute("getBusInfo", request, response) || int(response[0]) != 1) return out;
+  XmlRpc::XmlRpcValue& info = response[2];
+  for (int i = 0; i < info.size(); ++i)  // [id, destination, direction, transport, topic, ...]
+    if (std::string(info[i][2]) == "i")
+      out.push_back({std::string(info[i][4]), std::string(info[i][3])});
+  return out;
+}
+
+void makeBag(Bag* b) {
+  b->dir = std::make_unique<TempDir>();
+  b->bag = simulateBag(b->dir->path(), "indoor_circle", kBagDurationS);
+  runOffline(b);
+}
+
+void playBag(ros::NodeHandle& nh, const Bag& bag, bool nodelet, Replay* replay) {
   Replay& r = *replay;
-  r.dir = std::make_unique<TempDir>();
-  r.bag = simulateBag(r.dir->path(), "indoor_circle", kBagDurationS);
-  runOffline(&r);
+  r.bag = &bag;
+  const std::string mode = nodelet ? "nodelet" : "processes";
 
   TopicRecorder<nav_msgs::Odometry> odoms(nh, topics::kBackendOdom);
   TopicRecorder<geometry_msgs::PoseStamped> gt(nh, "/gt/pose");
@@ -65,14 +137,21 @@ void playBag(ros::NodeHandle& nh, Replay* replay) {
   TopicRecorder<sensor_msgs::PointCloud2> cloud(nh, topics::kMapCloud, 100);
   tf2_ros::Buffer tf(ros::Duration(60.0));
   tf2_ros::TransformListener listener(tf);
-  ChildProcess launch({"roslaunch", "vwe_vo", "replay.launch", "bag:=" + r.bag.bag_path,
-                       "rviz:=false", "rate:=1.0", "status_period_s:=2.0"},
-                      r.dir->path() + "/roslaunch.log");
+  ChildProcess launch({"roslaunch", "vwe_vo", "replay.launch", "bag:=" + bag.bag.bag_path,
+                       "rviz:=false", "rate:=1.0", "status_period_s:=2.0",
+                       std::string("nodelet:=") + (nodelet ? "true" : "false")},
+                      bag.dir->path() + "/roslaunch_" + mode + ".log");
   // Until the bag has played to its end (its last /gt/pose), then until the nodes are done.
-  const int64_t gt_end = r.bag.gt.back().t_ns;
+  const int64_t gt_end = bag.bag.gt.back().t_ns;
+  bool connections_read = false;
   const bool played = waitUntil(
       [&] {
         const auto g = gt.all();
+        // The manager's connections while the bag plays (rosbag play's ends with the bag).
+        if (!connections_read && g.size() >= 200) {
+          r.manager_inbound = inboundConnections(kManager);
+          connections_read = true;
+        }
         return !launch.running() ||
                (!g.empty() && toNs(g.back().msg.header.stamp) >= gt_end - secToNs(0.01));
       },
@@ -87,6 +166,7 @@ void playBag(ros::NodeHandle& nh, Replay* replay) {
         30.0);
     waitUntilQuiet([&] { return odoms.size() + points.size() + cloud.size() + paths.size(); }, 4.0,
                    30.0);
+    readGraph(topics::kArcs, topics::kEvents, &r);
   }
   r.odoms = odoms.messages();
   r.gt = gt.messages();
@@ -102,7 +182,8 @@ void playBag(ros::NodeHandle& nh, Replay* replay) {
   }
   launch.stop();
   r.launch_log = tailOf(launch.logPath(), 15, "_node: ");  // the nodes' newest status and warnings
-  if (!played) throw std::runtime_error("the bag did not play to its end:\n" + r.launch_log);
+  if (!played)
+    throw std::runtime_error("the bag did not play to its end (" + mode + "):\n" + r.launch_log);
 }
 
 double pathLengthM(const nav_msgs::Path& path) {
@@ -117,16 +198,51 @@ double pathLengthM(const nav_msgs::Path& path) {
 
 }  // namespace
 
-/// The bag is played once for the suite; every test inspects what was recorded.
-class ReplayLaunch : public test::ReplayedOnce<Replay, playBag> {};
+/// The bag is made once; it is played once each way (GetParam(): with nodelets or not), on the
+/// first test of that way, and every test inspects what was recorded.
+class ReplayLaunch : public testing::TestWithParam<bool> {
+ protected:
+  static void TearDownTestSuite() {
+    replays.clear();
+    bag.reset();
+  }
+  void SetUp() override {
+    if (!bag) {
+      bag = std::make_unique<Bag>();
+      try {
+        makeBag(bag.get());
+      } catch (const std::exception& e) {
+        bag->error = e.what();
+      }
+    }
+    ASSERT_TRUE(bag->error.empty()) << bag->error;
+    std::unique_ptr<Replay>& r = replays[GetParam()];
+    if (!r) {
+      r = std::make_unique<Replay>();
+      ros::NodeHandle nh;
+      try {
+        playBag(nh, *bag, GetParam(), r.get());
+      } catch (const std::exception& e) {
+        r->error = e.what();
+      }
+    }
+    replay = r.get();
+    ASSERT_TRUE(replay->error.empty()) << replay->error;
+  }
+  Replay* replay = nullptr;
+  static std::unique_ptr<Bag> bag;
+  static std::map<bool, std::unique_ptr<Replay>> replays;
+};
+std::unique_ptr<Bag> ReplayLaunch::bag;
+std::map<bool, std::unique_ptr<Replay>> ReplayLaunch::replays;
 
-// SetUpTestSuite simulates the bag, runs the offline runner on it and launches replay.launch.
-TEST_F(ReplayLaunch, WholeBagReachedTheSystem) {
+// SetUp simulates the bag, runs the offline runner on it and launches replay.launch.
+TEST_P(ReplayLaunch, WholeBagReachedTheSystem) {
   // /gt/pose at 200 Hz through gt_path.py's topic: the whole bag was played.
   EXPECT_GE(replay->gt.size(), size_t(0.95 * 200 * kBagDurationS)) << replay->launch_log;
 }
 
-TEST_F(ReplayLaunch, PathGrows) {
+TEST_P(ReplayLaunch, PathGrows) {
   const auto& paths = replay->paths;
   // One per refinement: every 1 s of arcs, or over longer spans when the back-end is behind (at
   // rate 1 the three nodes need more than 2 cores: see scripts/replay_check.py).
@@ -142,16 +258,16 @@ TEST_F(ReplayLaunch, PathGrows) {
   EXPECT_LT(pathLengthM(paths.back()), 0.3 * 1.5 * kBagDurationS);
 }
 
-TEST_F(ReplayLaunch, TfTreeIsValid) {
+TEST_P(ReplayLaunch, TfTreeIsValid) {
   ASSERT_FALSE(replay->odoms.empty());
   EXPECT_TRUE(replay->base_ok) << replay->tf_error;
   EXPECT_TRUE(replay->camera_ok) << replay->tf_error;
   // The newest odometry is near the end of the bag (within two windows).
-  EXPECT_GT(toNs(replay->last_odom_stamp), replay->bag.gt.back().t_ns - secToNs(0.7))
+  EXPECT_GT(toNs(replay->last_odom_stamp), replay->bag->bag.gt.back().t_ns - secToNs(0.7))
       << replay->launch_log;
 }
 
-TEST_F(ReplayLaunch, PointCloudsInOdomWithFinitePoints) {
+TEST_P(ReplayLaunch, PointCloudsInOdomWithFinitePoints) {
   const auto& clouds = replay->clouds;
   ASSERT_FALSE(clouds.empty()) << replay->launch_log;
   size_t total = 0;
@@ -177,14 +293,14 @@ TEST_F(ReplayLaunch, PointCloudsInOdomWithFinitePoints) {
 // spline, held to the offline back-end (the smoothed trajectory of the whole bag). Live arcs
 // differ a little from run to run (packet timing, a loaded CPU): measured live /vwe/odom
 // 0.248-0.310 deg/s against 0.251 for the offline front-end.
-TEST_F(ReplayLaunch, OdometryAndPathAsAccurateAsTheOfflineRunner) {
+TEST_P(ReplayLaunch, OdometryAndPathAsAccurateAsTheOfflineRunner) {
   ASSERT_FALSE(replay->paths.empty());
   const Trajectory3 gt = trajectoryOf(replay->gt);
   const Trajectory3 live_odom = trajectoryOf(replay->odoms);
   const Trajectory3 live_path = trajectoryOf(replay->paths.back().poses);
-  const double offline_fe = rotationRmseDegS(gt, replay->offline_frontend);
-  const double offline_be = rotationRmseDegS(gt, replay->offline_backend);
-  const double offline_odom = rotationRmseDegS(gt, replay->offline_odom);
+  const double offline_fe = rotationRmseDegS(gt, replay->bag->offline_frontend);
+  const double offline_be = rotationRmseDegS(gt, replay->bag->offline_backend);
+  const double offline_odom = rotationRmseDegS(gt, replay->bag->offline_odom);
   double odom_rmse = 0, path_rmse = 0;
   ASSERT_NO_THROW(odom_rmse = rotationRmseDegS(gt, live_odom));
   ASSERT_NO_THROW(path_rmse = rotationRmseDegS(gt, live_path));
@@ -204,6 +320,38 @@ TEST_F(ReplayLaunch, OdometryAndPathAsAccurateAsTheOfflineRunner) {
   EXPECT_LE(odom_rmse, 1.35 * offline_odom);
   EXPECT_LE(path_rmse, 1.2 * offline_be);
 }
+
+// The stages share one process with nodelets, and each has its own without.
+TEST_P(ReplayLaunch, StagesRunWhereTheLaunchSays) {
+  const bool nodelet = GetParam();
+  const std::vector<std::string> manager_only{kManager};
+  EXPECT_EQ(replay->nodes.count(kManager), nodelet ? 1u : 0u);
+  if (nodelet) {
+    EXPECT_EQ(replay->arcs_publishers, manager_only);
+    // The three stages' subscriptions are the manager's one subscription: each packet arrives once
+    // and is deserialised once, whatever the number of stages that use it.
+    EXPECT_EQ(replay->events_subscribers, manager_only);
+    size_t events_in = 0, arcs_intra = 0;
+    for (const Connection& c : replay->manager_inbound) {
+      if (c.topic == topics::kEvents) ++events_in;
+      if (c.topic == topics::kArcs && c.transport == "INTRAPROCESS") ++arcs_intra;
+    }
+    EXPECT_EQ(events_in, 1u);   // from rosbag play
+    EXPECT_EQ(arcs_intra, 1u);  // front-end -> back-end by pointer
+  } else {
+    EXPECT_EQ(replay->arcs_publishers, std::vector<std::string>{"/frontend_node"});
+    std::set<std::string> subscribers(replay->events_subscribers.begin(),
+                                      replay->events_subscribers.end());
+    EXPECT_EQ(subscribers,
+              (std::set<std::string>{"/frontend_node", "/backend_node", "/mapping_node"}));
+    EXPECT_TRUE(replay->manager_inbound.empty());
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Launch, ReplayLaunch, testing::Values(true, false),
+                         [](const testing::TestParamInfo<bool>& info) {
+                           return info.param ? "Nodelets" : "SeparateProcesses";
+                         });
 
 int main(int argc, char** argv) {
   return runReplayTests(argc, argv, "replay_launch_test");

@@ -25,6 +25,7 @@
 #include "vwe_vo/common/math.h"
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/ros/node_input.h"
+#include "vwe_vo/ros/process_priority.h"
 #include "vwe_vo/sensor/camera.h"
 
 namespace vwe_vo {
@@ -47,8 +48,9 @@ struct BackendNodeOptions {
 class BackendNode {
  public:
   /// Reads the parameters and the configuration (throws std::exception on unusable ones),
-  /// subscribes, advertises and starts the worker.
-  BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh);
+  /// subscribes, advertises and starts the worker. `hosting`: kSharedProcess in a nodelet manager.
+  BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh,
+              Hosting hosting = Hosting::kOwnProcess);
   /// Stops and joins the worker.
   ~BackendNode();
   BackendNode(const BackendNode&) = delete;
@@ -79,6 +81,7 @@ class BackendNode {
   void logStatus();
 
   ros::NodeHandle nh_, pnh_;
+  const Hosting hosting_;
   ros::Subscriber events_sub_, camera_info_sub_, arcs_sub_;
   ros::Publisher trajectory_pub_, odom_pub_, path_pub_;
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf_;

@@ -18,6 +18,7 @@
 #include "vwe_vo/common/math.h"
 #include "vwe_vo/mapping/emvs.h"
 #include "vwe_vo/ros/node_input.h"
+#include "vwe_vo/ros/process_priority.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/trajectory/bspline.h"
 
@@ -43,8 +44,9 @@ struct MappingNodeOptions {
 class MappingNode {
  public:
   /// Reads the parameters and the configuration (throws std::exception on unusable ones),
-  /// subscribes, advertises and starts the worker.
-  MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh);
+  /// subscribes, advertises and starts the worker. `hosting`: kSharedProcess in a nodelet manager.
+  MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh,
+              Hosting hosting = Hosting::kOwnProcess);
   /// Stops and joins the worker.
   ~MappingNode();
   MappingNode(const MappingNode&) = delete;
@@ -75,6 +77,7 @@ class MappingNode {
   void logStatus();
 
   ros::NodeHandle nh_, pnh_;
+  const Hosting hosting_;
   ros::Subscriber events_sub_, camera_info_sub_, trajectory_sub_;
   ros::Publisher points_pub_, cloud_pub_, depth_pub_;
 
