@@ -413,6 +413,14 @@ TEST(Emvs, OptionsNameTheBadField) {
     EXPECT_NE(std::string(e.what()).find("median_filter_size"), std::string::npos);
   }
   o = EmvsOptions();
+  o.min_ray_contrast = -1.0;
+  try {
+    o.validate();
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("mapping.min_ray_contrast"), std::string::npos);
+  }
+  o = EmvsOptions();
   o.kf_distance_m = -1;
   EXPECT_THROW(EmvsMapper(o, camera()), std::invalid_argument);
   GlobalMapOptions g;
