@@ -102,7 +102,7 @@ EmvsCounts& EmvsCounts::operator+=(const EmvsCounts& o) {
 EmvsOptions::EmvsOptions() {
   volume.grid_scale = 1.0;
   volume.margin_px = 0;
-  volume.num_planes = 100;
+  volume.num_planes = 40;
   volume.z_min_m = 0.5;
   volume.z_max_m = 8.0;
   volume.num_threads = 2;
@@ -136,6 +136,8 @@ void EmvsOptions::validate(const std::string& section) const {
   if (max_events_per_keyframe == 0) fail("max_events_per_keyframe must be positive");
   if (nms_radius_px < 0 || nms_radius_px > 10) fail("nms_radius_px must be in [0, 10]");
   if (nms_planes < 0) fail("nms_planes must be >= 0");
+  if (!(min_ray_contrast >= 0.0) || !std::isfinite(min_ray_contrast))
+    fail("min_ray_contrast must be >= 0 (0: off)");
   if (max_pending_events == 0) fail("max_pending_events must be positive");
   if (!(max_event_rate_hz >= 0 && std::isfinite(max_event_rate_hz)))
     fail("max_event_rate_hz must be >= 0 (0: vote every event)");
@@ -150,6 +152,7 @@ DepthExtraction extractDepth(const ProjectiveVolume& volume, const EmvsOptions& 
   out.mask = cv::Mat::zeros(H, W, CV_8U);
   float* conf = out.confidence.ptr<float>();
   std::vector<uint16_t> arg(N, 0);
+  std::vector<float> ray_sum(options.min_ray_contrast > 0.0 ? N : 0, 0.0f);
   const float* grid = volume.data().data();
   // Plane by plane: contiguous reads of the plane-major grid.
   for (int l = 0; l < L; ++l) {
@@ -160,6 +163,8 @@ DepthExtraction extractDepth(const ProjectiveVolume& volume, const EmvsOptions& 
         arg[i] = uint16_t(l);
       }
     }
+    if (!ray_sum.empty())
+      for (size_t i = 0; i < N; ++i) ray_sum[i] += plane[i];
   }
   double max_conf = 0.0;
   cv::minMaxLoc(out.confidence, nullptr, &max_conf);
@@ -171,6 +176,10 @@ DepthExtraction extractDepth(const ProjectiveVolume& volume, const EmvsOptions& 
   const int k = options.adaptive_kernel_size;
   cv::GaussianBlur(scaled, local_mean, cv::Size(k, k), options.adaptive_sigma_px,
                    options.adaptive_sigma_px, cv::BORDER_REPLICATE);
+  // Peak over mean along each pixel's depth ray: a pixel whose rays meet at one depth peaks
+  // sharply, one crossed by the rays of others (or near the focus of expansion, where a ray
+  // stays on its pixel at every depth) has a flat profile.
+  const float ray_contrast = float(options.min_ray_contrast) / float(L);
   cv::Mat depth = cv::Mat::zeros(H, W, CV_32F);
   float* d = depth.ptr<float>();
   uint8_t* m = out.mask.ptr<uint8_t>();
@@ -193,6 +202,7 @@ DepthExtraction extractDepth(const ProjectiveVolume& volume, const EmvsOptions& 
       const size_t i = size_t(y) * W + x;
       if (!(conf[i] > 0.0f && conf[i] >= min_conf && s[i] > mean[i] + c)) continue;
       if (local_max && conf[i] < local_ratio * local_max[i]) continue;
+      if (!ray_sum.empty() && conf[i] < ray_contrast * ray_sum[i]) continue;
       const int l = arg[i];
       // Non-maximum suppression in the DSI, jointly in image position and depth: the pixels
       // beside a point, whose rays cross the point's rays (the streaks in the confidence map),

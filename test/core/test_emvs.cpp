@@ -21,6 +21,18 @@ using namespace vwe_vo;
 
 namespace {
 
+/// The options of these tests of the mapper's geometry and counting: every event voted, 100
+/// planes, non-maximum suppression and a local-max ratio of 0.5 (the shipped selection is
+/// scored on the simulated sequences in test_emvs_sequences.cpp).
+EmvsOptions unitOptions() {
+  EmvsOptions o;
+  o.max_event_rate_hz = 0.0;
+  o.volume.num_planes = 100;
+  o.nms_radius_px = 1;
+  o.local_max_ratio = 0.5;
+  return o;
+}
+
 CameraCalibration testCalibration() {
   return test::syntheticCalibration(true);
 }
@@ -101,7 +113,7 @@ EmvsKeyframe mapWall(EmvsOptions o) {
   return out;
 }
 const EmvsKeyframe& wallKeyframe() {
-  static const EmvsKeyframe kf = mapWall(EmvsOptions());
+  static const EmvsKeyframe kf = mapWall(unitOptions());
   return kf;
 }
 
@@ -152,7 +164,7 @@ TEST(Emvs, FrontalWallIsPlanar) {
 // events (as the mapper does) the rays spread symmetrically around a point and the peak
 // centroid in inverse depth finds the depth between planes.
 TEST(Emvs, SubpixelRefinementBeatsPlainArgmax) {
-  EmvsOptions o;
+  EmvsOptions o = unitOptions();
   o.volume.num_planes = 60;  // coarser planes: the refinement must beat their spacing
   const EmvsKeyframe refined = mapWall(o);
   o.subpixel = false;
@@ -193,7 +205,7 @@ const ArcScene& arc() {
 }
 
 EmvsOptions arcOptions() {
-  EmvsOptions o;
+  EmvsOptions o = unitOptions();
   o.kf_distance_m = 0.6;
   o.volume.z_min_m = 0.8;
   o.volume.z_max_m = 10.0;
@@ -292,7 +304,7 @@ TEST(Emvs, EventsOutsideTheTrajectoryAreSkippedAndCounted) {
   size_t outside = 0;
   for (const PixelEvent& e : wall().events) outside += !covered.covers(e.t_ns);
   ASSERT_GT(outside, 1000u);
-  EmvsOptions o;
+  EmvsOptions o = unitOptions();
   o.kf_distance_m = 1.0;
   EmvsMapper mapper(o, camera());
   mapper.addEvents(wall().events);
@@ -310,7 +322,7 @@ TEST(Emvs, EventsOutsideTheTrajectoryAreSkippedAndCounted) {
 }
 
 TEST(Emvs, EventsAfterTheFinalTimeWaitForTheTrajectory) {
-  EmvsOptions o;
+  EmvsOptions o = unitOptions();
   o.kf_distance_m = 1.0;
   EmvsMapper mapper(o, camera());
   mapper.addEvents(wall().events);
@@ -360,7 +372,7 @@ TEST(Emvs, NanPosesAreSkippedAndCounted) {
   };
   size_t bad = 0;
   for (const PixelEvent& e : wall().events) bad += e.t_ns >= secToNs(0.2) && e.t_ns < secToNs(0.25);
-  EmvsOptions o;
+  EmvsOptions o = unitOptions();
   o.kf_distance_m = 1.0;
   EmvsMapper mapper(o, camera());
   mapper.addEvents(wall().events);
@@ -375,7 +387,7 @@ TEST(Emvs, NanPosesAreSkippedAndCounted) {
 
 TEST(Emvs, EmptyKeyframeGivesAnEmptyResult) {
   const LinearMotionModel model(Vec3(0.5, 0, 0), 0, 0, secToNs(1.0));
-  const EmvsOptions o;
+  const EmvsOptions o = unitOptions();
   const CameraCalibration& c = camera().calibration();
   const ProjectiveVolume no_votes(o.volume, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
   EmvsKeyframe kf;
@@ -385,7 +397,7 @@ TEST(Emvs, EmptyKeyframeGivesAnEmptyResult) {
   EXPECT_EQ(cv::countNonZero(kf.depth_m), 0);
   EXPECT_EQ(kf.counts.voted, 0u);
 
-  EmvsMapper mapper(EmvsOptions(), camera());
+  EmvsMapper mapper(unitOptions(), camera());
   EXPECT_TRUE(mapper.process(poseFunction(model), std::numeric_limits<int64_t>::max()).empty());
   EmvsKeyframe none;
   EXPECT_FALSE(mapper.finish(&none));
@@ -405,6 +417,14 @@ TEST(Emvs, OptionsNameTheBadField) {
     FAIL() << "no exception";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("median_filter_size"), std::string::npos);
+  }
+  o = EmvsOptions();
+  o.min_ray_contrast = -1.0;
+  try {
+    o.validate();
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("mapping.min_ray_contrast"), std::string::npos);
   }
   o = EmvsOptions();
   o.kf_distance_m = -1;

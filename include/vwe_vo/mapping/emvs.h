@@ -33,11 +33,13 @@ struct EmvsOptions {
   double adaptive_c =
       5.0;  // keep confidence > local Gaussian mean + C [1/255 of the max confidence]
   double min_confidence = 0.0;  // and confidence >= this [votes]
+  double min_ray_contrast =
+      0.0;  // and peak >= this x the mean along the pixel's depth ray; 0 = off
   int nms_radius_px =
-      1;  // and the voxel is the maximum of its (2r+1)^2 pixels x nms_planes [grid px]; 0 = off
+      0;  // and the voxel is the maximum of its (2r+1)^2 pixels x nms_planes [grid px]; 0 = off
   int nms_planes = 0;  // ... over the planes within this many of its own; 0 = all planes
   double local_max_ratio =
-      0.5;  // and confidence >= this fraction of the maximum in the window below; 0 = off
+      0.3;  // and confidence >= this fraction of the maximum in the window below; 0 = off
   int local_max_window_px = 15;  // ... window [grid px], odd
   int median_filter_size = 5;    // masked median of the depth map [grid px], odd; 1 = off
   bool subpixel = true;      // refine the argmax between planes (peak centroid in inverse depth)
@@ -50,8 +52,8 @@ struct EmvsOptions {
   size_t max_events_per_keyframe = 2000000;  // ... or this many events (bounds time and memory)
   size_t max_pending_events =
       8000000;  // events waiting for the trajectory; the oldest are dropped beyond
-  double max_event_rate_hz = 0.0;  // vote at most this many events per second (evenly over time,
-                                   // the others counted as thinned); 0 = all
+  double max_event_rate_hz = 500000.0;  // vote at most this many events per second (evenly over
+                                        // time, the others counted as thinned); 0 = all
   /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
   void validate(const std::string& section = "mapping") const;
 };
