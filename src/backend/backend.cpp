@@ -115,40 +115,67 @@ double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::Vect
 }
 
 SpeedPrior::SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free,
-                       const std::vector<double>& u, double weight, double min_speed_mps)
+                       const std::vector<double>& u, double weight, double min_speed_mps,
+                       const std::vector<double>& u_scale)
     : spline_(std::move(spline)), first_free_(first_free), weight_(weight) {
+  u_ = usable(u, min_speed_mps);
+  for (double uk : u_) v_.push_back(spline_->velocity(uk).norm());
+  u_scale_ = usable(u_scale, min_speed_mps);
+  for (double uk : u_scale_)
+    scale_target_ += spline_->velocity(uk).norm() / double(u_scale_.size());
+}
+
+std::vector<double> SpeedPrior::usable(const std::vector<double>& u, double min_speed_mps) const {
+  std::vector<double> out;
   for (double uk : u) {
     const bool still = spline_->standstillAt(uk) != nullptr;
     const double v = spline_->velocity(uk).norm();
     if (still || !(v >= min_speed_mps)) continue;
     // Only samples the free control points move.
     if (spline_->basis(uk, 0).first + spline_->degree() < first_free_) continue;
-    u_.push_back(uk);
-    v_.push_back(v);
+    out.push_back(uk);
   }
+  return out;
+}
+
+double SpeedPrior::speed(double u, double factor, Eigen::VectorXd* gradient) const {
+  const BasisDerivatives b = spline_->basis(u, 1);
+  Vec2 c1 = Vec2::Zero();
+  for (int j = 0; j <= spline_->degree(); ++j)
+    c1 += b.values(1, j) * spline_->controlPoints()[b.first + j];
+  const double s = c1.norm();
+  if (!gradient || !(s > 0) || factor == 0.0) return s;
+  const Vec2 ds_dc1 = c1 / s;
+  for (int j = 0; j <= spline_->degree(); ++j) {
+    const int i = b.first + j;
+    if (i < first_free_) continue;
+    gradient->segment<2>(2 * (i - first_free_)) += (factor * b.values(1, j)) * ds_dc1;
+  }
+  return s;
 }
 
 double SpeedPrior::evaluate(Eigen::VectorXd* gradient) const {
   const int num_free = 2 * (spline_->numControlPoints() - first_free_);
   if (gradient) gradient->setZero(num_free);
-  if (u_.empty() || weight_ == 0.0) return 0.0;
-  const double w = weight_ / double(u_.size());
+  if (weight_ == 0.0) return 0.0;
   double f = 0.0;
-  for (size_t k = 0; k < u_.size(); ++k) {
-    const BasisDerivatives b = spline_->basis(u_[k], 1);
-    Vec2 c1 = Vec2::Zero();
-    for (int j = 0; j <= spline_->degree(); ++j)
-      c1 += b.values(1, j) * spline_->controlPoints()[b.first + j];
-    const double s = c1.norm();
-    const double r = (s - v_[k]) / v_[k];
-    f += w * r * r;
-    if (!gradient || !(s > 0)) continue;
-    const Vec2 ds_dc1 = c1 / s;
-    for (int j = 0; j <= spline_->degree(); ++j) {
-      const int i = b.first + j;
-      if (i < first_free_) continue;
-      gradient->segment<2>(2 * (i - first_free_)) += (2 * w * r / v_[k] * b.values(1, j)) * ds_dc1;
+  if (!u_.empty()) {
+    const double w = weight_ / double(u_.size());
+    for (size_t k = 0; k < u_.size(); ++k) {
+      // The residual needs the speed first: evaluated without, then with the gradient.
+      const double r = (speed(u_[k], 0.0, nullptr) - v_[k]) / v_[k];
+      f += w * r * r;
+      if (gradient) speed(u_[k], 2 * w * r / v_[k], gradient);
     }
+  }
+  if (!u_scale_.empty() && scale_target_ > 0) {
+    const double n = double(u_scale_.size());
+    double s = 0.0;
+    for (double uk : u_scale_) s += speed(uk, 0.0, nullptr) / n;
+    const double r = (s - scale_target_) / scale_target_;
+    f += weight_ * r * r;
+    if (gradient)
+      for (double uk : u_scale_) speed(uk, 2 * weight_ * r / (scale_target_ * n), gradient);
   }
   return f;
 }
@@ -488,7 +515,18 @@ void Backend::refine(int64_t t_new_ns) {
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<double> u_prior;
   for (double u = u_window; u <= u_new; u += options_.init_sample_interval_s) u_prior.push_back(u);
-  const SpeedPrior speed_prior(spline_, first_free, u_prior, options_.speed_prior_weight);
+  // Measured speeds: every sample. A nominal speed: the refined past's speeds where the window
+  // has any (processed_ns_ is still the previous refinement's end), else the new part's mean.
+  std::vector<double> u_speeds, u_scale;
+  if (speeds_measured_) {
+    u_speeds = u_prior;
+  } else {
+    const double u_refined = processed_ns_ >= 0 ? spline_->toSplineTime(processed_ns_) : -1.0;
+    for (double u : u_prior) (u <= u_refined ? u_speeds : u_scale).push_back(u);
+  }
+  SpeedPrior speed_prior(spline_, first_free, u_speeds, options_.speed_prior_weight, 0.05);
+  if (speed_prior.numSamples() == 0)
+    speed_prior = SpeedPrior(spline_, first_free, {}, options_.speed_prior_weight, 0.05, u_scale);
   std::vector<ArcRatePrior::Arc> arcs;
   for (const ArcEstimate& a : arcs_) {
     const double ua = spline_->toSplineTime(a.t_start_ns), ub = spline_->toSplineTime(a.t_end_ns);

@@ -148,7 +148,7 @@ bool FrontendFollower::follow(const BSpline& spline, int64_t newest_event_ns, Fr
   last_t_ns_ = t_end;
   if (!speed_from_odometry_ && !spline.standstillAt(u) && std::isfinite(last_speed_) &&
       last_speed_ > options_.min_speed_mps) {
-    frontend->setNominalSpeed(last_speed_);
+    frontend->setNominalSpeed(last_speed_, t_end);
     ++speeds_taken_;
   }
   return true;

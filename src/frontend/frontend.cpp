@@ -114,6 +114,8 @@ void FrontendOptions::validate(const std::string& section) const {
   if (!(standstill_event_rate_hz >= 0)) fail("standstill_event_rate_hz must be >= 0");
   if (!(standstill_speed_mps >= 0)) fail("standstill_speed_mps must be >= 0");
   if (!(min_confidence >= 0 && min_confidence < 1)) fail("min_confidence must be in [0, 1)");
+  if (!(slow_rate_fraction >= 0 && slow_rate_fraction < 1))
+    fail("slow_rate_fraction must be in [0, 1) (0: off)");
   if (!(rescan_confidence >= 0 && rescan_confidence < 1))
     fail("rescan_confidence must be in [0, 1)");
   if (!(gyro_prior_half_range_rad_s > 0)) fail("gyro_prior_half_range_rad_s must be positive");
@@ -148,6 +150,8 @@ void Frontend::reset() {
   gyro_.clear();
   last_omega_ = 0.0;
   lost_ = true;
+  moving_rate_hz_ = 0.0;
+  speed_factors_.clear();
   chain_.reset();
   ++stats_.resets;
 }
@@ -227,11 +231,12 @@ size_t Frontend::dropBacklog(size_t keep) {
   return dropped;
 }
 
-double Frontend::speedAt(int64_t t0, int64_t t1, bool* standstill) const {
+double Frontend::speedAt(int64_t t0, int64_t t1, bool* standstill, bool* measured) const {
   double sum = 0;
   int n = 0;
   for (const RateSample& s : odometry_)
     if (s.t_ns >= t0 && s.t_ns <= t1) sum += s.v, ++n;
+  if (measured) *measured = n > 0;
   if (n == 0) {
     *standstill = false;
     return options_.nominal_speed_mps;
@@ -413,9 +418,27 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
                                    WindowScan setup, bool* scanned) {
   ArcEstimate arc;
   const double duration = dtSec(t1, t0);
-  bool odom_standstill = false;
-  const double v = speedAt(t0, t1, &odom_standstill);
+  bool odom_standstill = false, measured = false;
+  double v = speedAt(t0, t1, &odom_standstill, &measured);
   const double rate = double(events.size()) / std::max(duration, 1e-6);
+  // Without odometry, slow windows (braking into a stop, starting from one) are driven at a
+  // speed in proportion to their event rate; the others update the moving rate.
+  double factor = 1.0;
+  const bool moving = !odom_standstill && rate >= options_.standstill_event_rate_hz &&
+                      events.size() >= options_.min_events;
+  if (!measured && moving && options_.slow_rate_fraction > 0) {
+    const double slow_below = options_.slow_rate_fraction * moving_rate_hz_;
+    if (moving_rate_hz_ > 0 && rate < slow_below) {
+      factor = rate / slow_below;
+      v *= factor;
+      ++stats_.windows_slow;
+    } else {
+      moving_rate_hz_ =
+          moving_rate_hz_ > 0 ? moving_rate_hz_ + 0.2 * (rate - moving_rate_hz_) : rate;
+    }
+    speed_factors_.push_back({t0, t1, factor});
+    while (speed_factors_.size() > 64) speed_factors_.pop_front();
+  }
   const int64_t t_ref = events.empty()
                             ? t0 + (t1 - t0) / 2
                             : events.front().t_ns + (events.back().t_ns - events.front().t_ns) / 2;
@@ -545,6 +568,16 @@ void Frontend::setNominalSpeed(double v_mps) {
     throw std::invalid_argument("Frontend::setNominalSpeed: " + std::to_string(v_mps) +
                                 " m/s is not a positive speed");
   options_.nominal_speed_mps = v_mps;
+}
+
+void Frontend::setNominalSpeed(double v_mps, int64_t t_ns) {
+  double factor = 1.0;
+  for (const SpeedFactor& f : speed_factors_)
+    if (f.t0_ns <= t_ns && t_ns <= f.t1_ns) factor = f.factor;
+  // A factor near zero would blow a measurement error up: the speed of a window at 5 % of the
+  // moving rate says little about the moving speed.
+  if (factor < 0.2) return;
+  setNominalSpeed(v_mps / factor);
 }
 
 Pose3 Frontend::T_odom_base(int64_t t_ns) const {

@@ -141,6 +141,7 @@ void fields(Archive& a, FrontendOptions* o) {
   a("one_sided_z_min_m", &o->one_sided.z_min_m);
   a("one_sided_min_depth_m", &o->one_sided.min_depth_m);
   a("split_omega_change_rad_s", &o->split_omega_change_rad_s);
+  a("slow_rate_fraction", &o->slow_rate_fraction);
   a("use_gyro_prior", &o->use_gyro_prior);
   a("gyro_prior_half_range_rad_s", &o->gyro_prior_half_range_rad_s);
   a("seed", &o->seed);

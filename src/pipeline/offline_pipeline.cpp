@@ -161,6 +161,11 @@ void OfflinePipeline::setFrontendFollowsBackend(const FollowOptions& options,
   follower_ = FrontendFollower(options, frontend_has_odometry);
 }
 
+void OfflinePipeline::setSpeedsMeasured(bool measured) {
+  if (t_first_ >= 0) throw std::logic_error("setSpeedsMeasured: call it before the first events");
+  if (backend_) backend_->setSpeedsMeasured(measured);
+}
+
 void OfflinePipeline::followBackend() {
   waitBackend();
   std::shared_ptr<const BSpline> spline;

@@ -332,6 +332,7 @@ int main(int argc, char** argv) {
     vwe_vo::FollowOptions follow;
     follow.follow_backend = follow_backend;
     pipeline.setFrontendFollowsBackend(follow, use_odom);
+    pipeline.setSpeedsMeasured(use_odom);
     if (args.count("--truth-arcs")) {
       pipeline.setBackendArcsFromTruth(vwe_vo::readTum(args["--truth-arcs"]), truth_blend);
     }

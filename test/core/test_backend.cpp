@@ -362,6 +362,25 @@ TEST(Backend, SpeedPriorGradientMatchesCentralFiniteDifferences) {
   expectGradientMatchesCentralDifferences(spline.get(), first_free, prior, 0.03, 1e-6);
 }
 
+TEST(Backend, SpeedPriorScaleTermLeavesTheSpeedShapeFreeAndItsGradientMatches) {
+  auto spline = std::make_shared<BSpline>(*truthSpline());
+  const int first_free = 4;
+  std::vector<double> u_scale;
+  for (double x = 0.0; x <= kDuration; x += 0.05) u_scale.push_back(x);
+  const SpeedPrior prior(spline, first_free, {}, 3.0, 0.05, u_scale);
+  EXPECT_EQ(prior.numSamples(), 0u);
+  EXPECT_GT(prior.numScaleSamples(), 40u);
+  EXPECT_NEAR(prior.evaluate(nullptr), 0.0, 1e-20);
+  // The mean speed alone: a path 10 % longer costs weight * 0.1^2.
+  const std::vector<Vec2> P0 = spline->controlPoints();
+  const SpeedPrior all_free(spline, 0, {}, 3.0, 0.05, u_scale);
+  for (int i = 0; i < spline->numControlPoints(); ++i)
+    spline->setControlPoint(i, 1.1 * P0[size_t(i)]);
+  EXPECT_NEAR(all_free.evaluate(nullptr), 3.0 * 0.1 * 0.1, 1e-9);
+  for (int i = 0; i < spline->numControlPoints(); ++i) spline->setControlPoint(i, P0[size_t(i)]);
+  expectGradientMatchesCentralDifferences(spline.get(), first_free, prior, 0.03, 1e-6);
+}
+
 TEST(Backend, ArcRatePriorIsZeroOnItsOwnArcsAndItsGradientMatchesFiniteDifferences) {
   auto spline = std::make_shared<BSpline>(*truthSpline());
   const int first_free = 4;

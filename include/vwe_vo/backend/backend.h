@@ -139,23 +139,33 @@ class SplinePrior {
   virtual double evaluate(Eigen::VectorXd* gradient) const = 0;
 };
 
-/// Soft prior that keeps the speed |c'(u)| of the free part of the spline near target speeds
-/// (the scale the front-end's v gave): weight / K * sum_k ((|c'(u_k)| - v_k) / v_k)^2. The VWE
-/// fixes the scale only through the overlap of the volumes, and rays beyond the depth range bias
-/// it (shrinking the path brings far points into the grid).
+/// Soft prior on the speed |c'(u)| of the free part of the spline, the scale the VWE fixes only
+/// through the overlap of the volumes (rays beyond the depth range bias it: shrinking the path
+/// brings far points into the grid). Two kinds of terms, targets the spline's current speeds:
+///  - speeds: weight / K * sum_k ((|c'(u_k)| - v_k) / v_k)^2 at the K samples u_k, the speed
+///    shape (measured speeds, or the refined past);
+///  - scale: weight * ((S - S0) / S0)^2 with S the mean speed over the samples u_scale, the
+///    distance driven alone: the speed shape there is left to the VWE.
+/// Samples with speed below min_speed_mps, in a standstill or out of the free control points'
+/// reach are left out.
 class SpeedPrior : public SplinePrior {
  public:
-  /// Targets are the spline's current speeds at u_k (samples with speed below min_speed_mps or in
-  /// a standstill are left out).
   SpeedPrior(std::shared_ptr<const BSpline> spline, int first_free, const std::vector<double>& u,
-             double weight, double min_speed_mps = 0.05);
+             double weight, double min_speed_mps = 0.05,
+             const std::vector<double>& u_scale = std::vector<double>());
   double evaluate(Eigen::VectorXd* gradient) const override;
   size_t numSamples() const { return u_.size(); }
+  size_t numScaleSamples() const { return u_scale_.size(); }
 
  private:
+  std::vector<double> usable(const std::vector<double>& u, double min_speed_mps) const;
+  /// Adds d|c'(u)|/d(free control points) * factor to gradient; returns |c'(u)|.
+  double speed(double u, double factor, Eigen::VectorXd* gradient) const;
+
   std::shared_ptr<const BSpline> spline_;
   int first_free_;
-  std::vector<double> u_, v_;
+  std::vector<double> u_, v_, u_scale_;
+  double scale_target_ = 0.0;  // S0: the mean target speed over u_scale_
   double weight_;
 };
 
@@ -229,6 +239,13 @@ class Backend {
   Backend(const BackendOptions& options, const CameraModel& camera, const Pose3& T_base_cam);
 
   const BackendOptions& options() const { return options_; }
+  /// Whether the arcs' speeds are measurements (/odom), the default, or the front-end's nominal
+  /// speed. Measured speeds are held sample by sample (speed_prior_weight); a nominal speed only
+  /// sets the scale: the speeds the spline was refined to anchor it, and where the window holds
+  /// none (the first refinement, after a stop) the mean speed of the new part does, its shape
+  /// left to the volumes (a constant nominal speed through a stop would bend the path).
+  void setSpeedsMeasured(bool measured) { speeds_measured_ = measured; }
+  bool speedsMeasured() const { return speeds_measured_; }
   /// Time-ordered events; events outside the sensor or out of order are dropped and counted,
   /// a jump back by more than max_backwards_jump_s resets the back-end. Events older than the
   /// window are dropped as time advances.
@@ -279,6 +296,7 @@ class Backend {
   void refine(int64_t t_new_ns);
 
   BackendOptions options_;
+  bool speeds_measured_ = true;
   const CameraModel& camera_;
   Pose3 T_base_cam_;
   VweObjectivePool objectives_;

@@ -58,8 +58,14 @@ struct FrontendOptions {
   double min_confidence = 0.02;        // below: LOST, next window scans the full range
   double rescan_confidence = 0.07;     // a flatter scan around the previous omega is repeated
                                        // over the full range (a fast turn began)
-  double split_omega_change_rad_s = 0.05;    // a window whose omega differs more from the last is
-                                             // estimated again as two halves (0: never)
+  double split_omega_change_rad_s = 0.05;  // a window whose omega differs more from the last is
+                                           // estimated again as two halves (0: never)
+  // Without odometry, a window with fewer events per second than this fraction of the moving
+  // event rate (an average over recent windows above it) is driven slower: the nominal speed
+  // times rate / (fraction * moving rate). Braking into a stop or starting from one, the flow of
+  // a vehicle on its path, rotation included (omega = curvature * v), scales with v, and so do
+  // the events (0: off).
+  double slow_rate_fraction = 0.5;
   bool use_gyro_prior = false;               // centre and narrow the scan on the gyro yaw rate
   double gyro_prior_half_range_rad_s = 0.1;  // scan half range around the gyro yaw rate [rad/s]
   double max_backwards_jump_s =
@@ -95,6 +101,7 @@ struct FrontendStats {
   size_t events_in = 0, events_outside = 0, events_out_of_order = 0;
   size_t windows = 0, windows_dropped = 0, windows_split = 0, resets = 0;
   size_t evaluations = 0;
+  size_t windows_slow = 0;       // without odometry: nominal speed scaled by the event rate
   size_t windows_one_sided = 0;  // estimated with the deeper planes (one_sided.z_min_m)
   size_t windows_one_sided_near =
       0;  // one-sided, but the structure nearer than one_sided.min_depth_m
@@ -147,6 +154,12 @@ class Frontend {
   /// Replaces the speed used when no odometry is given (e.g. the back-end's refined speed);
   /// throws std::invalid_argument unless positive and finite.
   void setNominalSpeed(double v_mps);
+  /// The same for a speed measured at t_ns: divided by the slow-window factor
+  /// (slow_rate_fraction) of the window that covers t_ns, so the nominal speed stays that of a
+  /// vehicle at the moving event rate.
+  void setNominalSpeed(double v_mps, int64_t t_ns);
+  /// Event rate of the recent moving windows the slow-window rule compares with (0: none yet).
+  double movingEventRate() const { return moving_rate_hz_; }
 
   /// Dead-reckoned pose of base_link in odom at t (arcs chained from the identity).
   Pose3 T_odom_base(int64_t t_ns) const;
@@ -165,7 +178,8 @@ class Frontend {
   /// Extends the dead reckoning over the part of time the span [t0, t1) stands for.
   void extendChain(int64_t t0, int64_t t1, double omega, double v);
   void moveToNextWindow(int64_t t0, int64_t t1);
-  double speedAt(int64_t t0_ns, int64_t t1_ns, bool* standstill) const;
+  /// Mean /odom speed over [t0, t1], else the nominal speed (*measured false).
+  double speedAt(int64_t t0_ns, int64_t t1_ns, bool* standstill, bool* measured = nullptr) const;
   bool gyroAt(int64_t t0_ns, int64_t t1_ns, double* yaw_rate) const;
 
   FrontendOptions options_;
@@ -188,6 +202,12 @@ class Frontend {
   std::deque<RateSample> odometry_, gyro_;
   double last_omega_ = 0.0;
   bool lost_ = true;
+  double moving_rate_hz_ = 0.0;  // slow_rate_fraction: the moving windows' event rate
+  struct SpeedFactor {
+    int64_t t0_ns, t1_ns;
+    double factor;
+  };
+  std::deque<SpeedFactor> speed_factors_;  // of the newest windows (setNominalSpeed)
   std::unique_ptr<ArcChain> chain_;
   FrontendStats stats_;
 };

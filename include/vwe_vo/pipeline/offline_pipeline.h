@@ -57,6 +57,9 @@ class OfflinePipeline {
   /// then does following change the outputs, so only then does the front-end wait for the
   /// back-end's job (the two stages run in turn). Call before the first events.
   void setFrontendFollowsBackend(const FollowOptions& options, bool frontend_has_odometry);
+  /// Whether the front-end's speeds come from /odom (the default) or are its nominal speed: the
+  /// back-end then holds only the scale, not the speed shape (Backend::setSpeedsMeasured).
+  void setSpeedsMeasured(bool measured);
 
   /// Runs the frame-based baseline (config.baseline) on frames given to addFrame().
   void enableBaseline();
