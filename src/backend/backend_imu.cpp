@@ -1,8 +1,8 @@
 // The Backend's IMU fusion (Backend::enableImu): attitude filter, gyro prior, yaw-rate bias.
+#include "backend_imu.h"
+
 #include <algorithm>
 #include <cmath>
-
-#include "backend_imu.h"
 
 namespace vwe_vo {
 
@@ -56,7 +56,8 @@ void Backend::advanceImu() {
       // The spline's (or the arcs') speed and yaw rate, with a central difference for dv.
       Pose3 T;
       double v = 0, w = 0, va = 0, vb = 0, unused = 0;
-      const int64_t a = std::max(t0, s.t_ns - kDiff_ns), b = std::min(newest_arc_ns_, s.t_ns + kDiff_ns);
+      const int64_t a = std::max(t0, s.t_ns - kDiff_ns),
+                    b = std::min(newest_arc_ns_, s.t_ns + kDiff_ns);
       if (planarPoseAt(s.t_ns, &T, &v, &w) && planarPoseAt(a, &T, &va, &unused) &&
           planarPoseAt(b, &T, &vb, &unused)) {
         const double dt = dtSec(b, a);
@@ -79,8 +80,7 @@ void Backend::advanceImu() {
     m.yaw_rates.pop_front();
 }
 
-std::unique_ptr<SplinePrior> Backend::makeGyroPrior(double u_window, double u_new,
-                                                    int first_free) {
+std::unique_ptr<SplinePrior> Backend::makeGyroPrior(double u_window, double u_new, int first_free) {
   Imu& m = *imu_;
   if (m.options.gyro_prior_weight == 0.0 || m.yaw_rates.empty()) return nullptr;
   const double bin = m.options.gyro_bin_s;

@@ -102,8 +102,8 @@ void AttitudeFilter::add(const ImuSample& s, const VehicleMotion& m) {
   // heading frame (dv forward, v omega to the left) tilted into the body, plus the lever arm's.
   const Vec3 a_heading(m.dv, m.v * m.omega, 0.0);
   const Tilt tilt_now = tilt();
-  const Vec3 a_body = tilt_now.rotation().transpose() * a_heading +
-                      w.cross(w.cross(lever_arm_)) + dw.cross(lever_arm_);
+  const Vec3 a_body = tilt_now.rotation().transpose() * a_heading + w.cross(w.cross(lever_arm_)) +
+                      dw.cross(lever_arm_);
   const Vec3 g_meas = s.accel - a_body;  // = R^T (0, 0, g)
   const double g = options_.gravity_mps2;
   if (!initialised_) {

