@@ -76,6 +76,15 @@ cv::Mat1f multiScaleNoise(int size, int min_cells, float persistence, std::mt199
   return sum / std::sqrt(total);  // unit standard deviation
 }
 
+/// The seams of an 8 x 8 grid of tiles (floor or ceiling), lines about 1/256 of the texture wide.
+void drawTileSeams(cv::Mat1f& log2_img, int size, float level) {
+  const int tile = size / 8, width = std::max(1, size / 256);
+  for (int k = 0; k <= 8; ++k) {
+    cv::line(log2_img, cv::Point(k * tile, 0), cv::Point(k * tile, size), cv::Scalar(level), width);
+    cv::line(log2_img, cv::Point(0, k * tile), cv::Point(size, k * tile), cv::Scalar(level), width);
+  }
+}
+
 void drawRandomShapes(cv::Mat1f& log2_img, int count, float level_lo, float level_hi,
                       float min_size, float max_size, std::mt19937_64& rng) {
   const int size = log2_img.rows;
@@ -142,13 +151,7 @@ Texture makeTexture(TextureStyle style, int size, float texel_size_m, uint64_t s
       // high-contrast grain of a lab floor, which is what a low, forward-looking camera sees moving
       // fastest when driving straight.
       L.setTo(-1.4f);
-      const int tile = size / 8;
-      for (int k = 0; k <= 8; ++k) {  // tile seams
-        cv::line(L, cv::Point(k * tile, 0), cv::Point(k * tile, size), cv::Scalar(-2.3f),
-                 std::max(1, size / 256));
-        cv::line(L, cv::Point(0, k * tile), cv::Point(size, k * tile), cv::Scalar(-2.3f),
-                 std::max(1, size / 256));
-      }
+      drawTileSeams(L, size, -2.3f);
       drawRandomShapes(L, 60, -2.3f, -0.8f, sz * 0.01f, sz * 0.1f, rng);  // scuffs and patches
       drawRandomShapes(L, size * size / kFloorTexelsPerChip, -3.0f, -0.3f, 1.0f, 6.0f, rng);
       noise_stops = 0.4f;
@@ -156,13 +159,7 @@ Texture makeTexture(TextureStyle style, int size, float texel_size_m, uint64_t s
     }
     case TextureStyle::kCeiling: {
       L.setTo(-1.5f);
-      const int tile = size / 8;
-      for (int k = 0; k <= 8; ++k) {  // tile seams
-        cv::line(L, cv::Point(k * tile, 0), cv::Point(k * tile, size), cv::Scalar(-2.3f),
-                 std::max(1, size / 256));
-        cv::line(L, cv::Point(0, k * tile), cv::Point(size, k * tile), cv::Scalar(-2.3f),
-                 std::max(1, size / 256));
-      }
+      drawTileSeams(L, size, -2.3f);
       drawRandomShapes(L, 80, -2.3f, -1.0f, sz * 0.005f, sz * 0.12f, rng);
       noise_stops = 0.3f;
       break;

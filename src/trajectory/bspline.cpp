@@ -120,18 +120,6 @@ void BSpline::setControlPoint(int i, const Vec2& p) {
   ++version_;
 }
 
-void BSpline::setKnots(const std::vector<double>& knots_s) {
-  std::vector<double> old = std::move(knots_);
-  knots_ = knots_s;
-  try {
-    validate();
-  } catch (...) {
-    knots_ = std::move(old);
-    throw;
-  }
-  ++version_;
-}
-
 bool BSpline::covers(int64_t t_ns) const {
   const double u = toSplineTime(t_ns);
   return u >= validFrom() && u <= validTo();

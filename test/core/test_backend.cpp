@@ -12,6 +12,7 @@
 #include <tuple>
 
 #include "../common/synthetic_events.h"
+#include "../common/test_camera.h"
 #include "vwe_vo/backend/backend.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/pipeline/offline_pipeline.h"
@@ -28,14 +29,7 @@ constexpr int kFdEvents = 40000;               // events per volume of the gradi
 constexpr double kYawRate = 10.0 * kPi / 180;  // [rad/s]
 
 CameraCalibration testCalibration() {
-  CameraCalibration c;
-  c.width = 346;
-  c.height = 260;
-  c.fx = c.fy = 250;
-  c.cx = 173;
-  c.cy = 130;
-  c.distortion = {-0.3, 0.1, 0, 0, 0};
-  return c;
+  return test::syntheticCalibration(true);
 }
 
 Pose3 testExtrinsics() {

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/test_camera.h"
 #include "vwe_vo/backend/backend_driver.h"
 
 using namespace vwe_vo;
@@ -16,13 +17,7 @@ constexpr int64_t kEpoch = 100000000000LL;  // 100 s
 constexpr int64_t kArcNs = 50000000;        // 50 ms
 
 CameraCalibration calibration() {
-  CameraCalibration c;
-  c.width = 346;
-  c.height = 260;
-  c.fx = c.fy = 250;
-  c.cx = 173;
-  c.cy = 130;
-  return c;
+  return test::syntheticCalibration(false);
 }
 
 Pose3 extrinsics() {

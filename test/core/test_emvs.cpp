@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "../common/synthetic_events.h"
+#include "../common/test_camera.h"
 #include "vwe_vo/io/config.h"
 #include "vwe_vo/io/ply.h"
 #include "vwe_vo/mapping/emvs.h"
@@ -21,14 +22,7 @@ using namespace vwe_vo;
 namespace {
 
 CameraCalibration testCalibration() {
-  CameraCalibration c;
-  c.width = 346;
-  c.height = 260;
-  c.fx = c.fy = 250;
-  c.cx = 173;
-  c.cy = 130;
-  c.distortion = {-0.3, 0.1, 0, 0, 0};
-  return c;
+  return test::syntheticCalibration(true);
 }
 
 const CameraModel& camera() {

@@ -6,6 +6,7 @@
 #include <random>
 
 #include "../common/synthetic_events.h"
+#include "../common/test_camera.h"
 #include "vwe_vo/sensor/subsample.h"
 #include "vwe_vo/vwe/ray_builder.h"
 #include "vwe_vo/vwe/vwe_objective.h"
@@ -37,14 +38,7 @@ class YawForwardModel : public TrajectoryModel {
 };
 
 CameraCalibration testCalibration() {
-  CameraCalibration c;
-  c.width = 346;
-  c.height = 260;
-  c.fx = c.fy = 250;
-  c.cx = 173;
-  c.cy = 130;
-  c.distortion = {-0.3, 0.1, 0, 0, 0};
-  return c;
+  return test::syntheticCalibration(true);
 }
 
 EventVector makeEvents(const CameraModel& cam, const TrajectoryModel& truth, int n, unsigned seed) {

@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
@@ -285,6 +286,28 @@ inline int runReplayTests(int argc, char** argv, const char* node_name) {
   ros::shutdown();
   return result;
 }
+
+/// A suite that replays its bag once, in SetUpTestSuite, and whose tests inspect what was
+/// recorded. A replay that threw fails every test with its message, so no test depends on the
+/// order in which the others run. Replay has a `std::string error`; Play fills a Replay.
+template <class Replay, void (*Play)(ros::NodeHandle&, Replay*)>
+class ReplayedOnce : public testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    replay = std::make_unique<Replay>();
+    ros::NodeHandle nh;
+    try {
+      Play(nh, replay.get());
+    } catch (const std::exception& e) {
+      replay->error = e.what();
+    }
+  }
+  static void TearDownTestSuite() { replay.reset(); }
+  void SetUp() override { ASSERT_TRUE(replay->error.empty()) << replay->error; }
+  static std::unique_ptr<Replay> replay;
+};
+template <class Replay, void (*Play)(ros::NodeHandle&, Replay*)>
+std::unique_ptr<Replay> ReplayedOnce<Replay, Play>::replay;
 
 }  // namespace test
 }  // namespace vwe_vo

@@ -52,22 +52,7 @@ double windowDurationS() {
 }  // namespace
 
 /// The bag is played once for the suite; every test inspects what was recorded.
-class FrontendBag : public testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    replay = std::make_unique<Replay>();
-    ros::NodeHandle nh;
-    try {
-      playBag(nh, replay.get());
-    } catch (const std::exception& e) {
-      replay->error = e.what();
-    }
-  }
-  static void TearDownTestSuite() { replay.reset(); }
-  void SetUp() override { ASSERT_TRUE(replay->error.empty()) << replay->error; }
-  static std::unique_ptr<Replay> replay;
-};
-std::unique_ptr<Replay> FrontendBag::replay;
+class FrontendBag : public test::ReplayedOnce<Replay, playBag> {};
 
 TEST_F(FrontendBag, PlaybackReachedTheEnd) {
   EXPECT_EQ(replay->play_exit_code, 0) << replay->play_log;

@@ -118,22 +118,7 @@ double pathLengthM(const nav_msgs::Path& path) {
 }  // namespace
 
 /// The bag is played once for the suite; every test inspects what was recorded.
-class ReplayLaunch : public testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    replay = std::make_unique<Replay>();
-    ros::NodeHandle nh;
-    try {
-      playBag(nh, replay.get());
-    } catch (const std::exception& e) {
-      replay->error = e.what();
-    }
-  }
-  static void TearDownTestSuite() { replay.reset(); }
-  void SetUp() override { ASSERT_TRUE(replay->error.empty()) << replay->error; }
-  static std::unique_ptr<Replay> replay;
-};
-std::unique_ptr<Replay> ReplayLaunch::replay;
+class ReplayLaunch : public test::ReplayedOnce<Replay, playBag> {};
 
 // SetUpTestSuite simulates the bag, runs the offline runner on it and launches replay.launch.
 TEST_F(ReplayLaunch, WholeBagReachedTheSystem) {

@@ -71,7 +71,6 @@ class BSpline {
   /// Setters keep the sizes (throw std::invalid_argument otherwise).
   void setControlPoints(const std::vector<Vec2>& control_points);
   void setControlPoint(int i, const Vec2& p);
-  void setKnots(const std::vector<double>& knots_s);
 
   int64_t epochNs() const { return epoch_ns_; }
   /// Spline time [s] of a stamp.
