@@ -1,10 +1,12 @@
 // Throughput of the back-end's multi-volume objective: evaluations (value + gradient w.r.t. the
 // free control points) per second for 10 volumes x 20k events along a spline, on the default
-// grid (half resolution, 30 planes, 2 threads).
+// grid (half resolution, 30 planes, 2 threads); and of the IMU's parts (the gyro prior over a
+// window, the attitude filter per sample), the cost the IMU adds to a refinement.
 #include <benchmark/benchmark.h>
 
 #include "../test/common/synthetic_events.h"
 #include "vwe_vo/backend/backend.h"
+#include "vwe_vo/backend/gyro_prior.h"
 #include "vwe_vo/io/config.h"
 
 using namespace vwe_vo;
@@ -77,6 +79,40 @@ BENCHMARK(BM_MultiVolumeObjective)
     ->Args({3, 8000, 1, 2})  // an odd count: the third volume on both threads
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+
+// The gyro prior of one refinement window (1.6 s in bins of 0.05 s), value + gradient.
+void BM_GyroRatePrior(benchmark::State& state) {
+  auto spline = curve();
+  std::vector<GyroRatePrior::Bin> bins;
+  for (double u = 1.2; u + 0.05 <= 2.8; u += 0.05) bins.push_back({u, u + 0.05, 0.17 + 0.003});
+  const ImuFusionOptions o;
+  const GyroRatePrior prior(spline, 4, bins, o.gyro_prior_weight,
+                            o.gyro_noise_density_deg_s / kDegPerRad, 0.0, 0.01);
+  Eigen::VectorXd g;
+  for (auto _ : state) benchmark::DoNotOptimize(prior.evaluate(&g));
+  state.counters["evals_per_s"] =
+      benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["bins"] = double(prior.numBins());
+}
+BENCHMARK(BM_GyroRatePrior)->Unit(benchmark::kMicrosecond);
+
+// The attitude filter, per 1 kHz sample (real time needs 1000 per second).
+void BM_AttitudeFilter(benchmark::State& state) {
+  AttitudeFilter f(ImuFusionOptions(), Vec3(0.1, 0.0, 0.3));
+  ImuSample s;
+  s.gyro = Vec3(0.001, -0.002, 0.17);
+  s.accel = Vec3(0.05, 0.07, 9.8);
+  VehicleMotion m;
+  m.v = 0.4, m.omega = 0.17;
+  for (auto _ : state) {
+    s.t_ns += 1000000;
+    f.add(s, m);
+    benchmark::DoNotOptimize(f.tilt());
+  }
+  state.counters["samples_per_s"] =
+      benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_AttitudeFilter);
 
 }  // namespace
 

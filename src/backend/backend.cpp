@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "backend_imu.h"
 #include "vwe_vo/common/validated.h"
 #include "vwe_vo/sensor/subsample.h"
 
@@ -318,6 +319,8 @@ Backend::Backend(const BackendOptions& options, const CameraModel& camera, const
       T_base_cam_(T_base_cam),
       objectives_(camera_, validated(options).volume) {}
 
+Backend::~Backend() = default;
+
 void Backend::reset() {
   buffer_.clear();
   standstills_ns_.clear();
@@ -328,6 +331,7 @@ void Backend::reset() {
   first_free_ = 0;
   T_anchor_ = Pose3::Identity();
   spline_.reset();
+  if (imu_) imu_->reset();
   ++stats_.resets;
 }
 
@@ -387,6 +391,7 @@ bool Backend::addArc(const ArcEstimate& arc) {
       standstills_ns_.emplace_back(from, arc.t_end_ns);
   }
   newest_arc_ns_ = arc.t_end_ns;
+  if (imu_) advanceImu();
   return was_reset;
 }
 
@@ -536,6 +541,9 @@ void Backend::refine(int64_t t_new_ns) {
   std::vector<const SplinePrior*> priors;
   if (options_.speed_prior_weight > 0) priors.push_back(&speed_prior);
   if (options_.arc_rate_prior_weight > 0) priors.push_back(&arc_prior);
+  const std::unique_ptr<SplinePrior> gyro_prior =
+      imu_ ? makeGyroPrior(u_window, u_new, first_free) : nullptr;
+  if (gyro_prior) priors.push_back(gyro_prior.get());
   // The solver's unit follows the vehicle's scale: control points of a car moving 1.2 m per knot
   // span need moves of centimetres, a robot's of millimetres (LBFGS stopped after 2-5 iterations
   // on the street with a fixed 2 cm unit).
@@ -573,6 +581,7 @@ void Backend::refine(int64_t t_new_ns) {
     stats_.gain_sum += f1 / f0 - 1.0;
     ++stats_.accepted;
   }
+  if (gyro_prior) updateGyroBias(gyro_prior.get(), t_new_ns);
 }
 
 int64_t Backend::oldestArcTime() const {
@@ -580,6 +589,12 @@ int64_t Backend::oldestArcTime() const {
 }
 
 bool Backend::poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const {
+  if (!planarPoseAt(t_ns, T_odom_base, v, omega)) return false;
+  if (imu_) *T_odom_base = withTilt(t_ns, *T_odom_base);
+  return true;
+}
+
+bool Backend::planarPoseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const {
   if (!dead_reckoning_ || t_ns < dead_reckoning_->startTime() || t_ns > newest_arc_ns_)
     return false;
   constexpr int64_t kRateStep_ns = 20000000;  // central differences for the rates [ns]
@@ -610,16 +625,19 @@ Trajectory3 Backend::sampleTrajectory(double rate_hz) const {
     out.push_back({t, spline_->T_odom_base(spline_->toSplineTime(t))});
   if (out.empty() || out.back().t_ns < t1)
     out.push_back({t1, spline_->T_odom_base(spline_->toSplineTime(t1))});
+  if (imu_)
+    for (auto& s : out) s.T = withTilt(s.t_ns, s.T);
   return out;
 }
 
 bool ContinuousOdometry::next(const Backend& backend, int64_t t_ns, Pose3* T_odom_base, double* v,
                               double* omega) {
+  // Composed on the planar poses; the tilt (IMU) is the estimate at t_ns.
   Pose3 T_best;
-  if (!backend.poseAt(t_ns, &T_best, v, omega)) return false;
+  if (!backend.planarPoseAt(t_ns, &T_best, v, omega)) return false;
   Pose3 T_was;
   if (has_previous_ && t_ns > t_previous_ns_ &&
-      backend.poseAt(t_previous_ns_, &T_was, nullptr, nullptr)) {
+      backend.planarPoseAt(t_previous_ns_, &T_was, nullptr, nullptr)) {
     // The motion since the previous output as the back-end sees it now, on the output so far.
     *T_odom_base = Pose3(T_previous_ * (T_was.inverse() * T_best));
   } else {
@@ -628,6 +646,8 @@ bool ContinuousOdometry::next(const Backend& backend, int64_t t_ns, Pose3* T_odo
   has_previous_ = true;
   t_previous_ns_ = t_ns;
   T_previous_ = *T_odom_base;
+  if (backend.usesImu())
+    T_odom_base->linear() = T_odom_base->linear() * backend.tiltAt(t_ns).rotation();
   return true;
 }
 

@@ -212,6 +212,25 @@ void fields(Archive& a, EmvsOptions* o, GlobalMapOptions* global_map) {
   a("max_event_rate_hz", &o->max_event_rate_hz);
 }
 
+template <typename Archive>
+void fields(Archive& a, ImuFusionOptions* o) {
+  Archive m = a.section("T_cam_imu");
+  m("translation", &o->T_cam_imu_translation);
+  m("quaternion_xyzw", &o->T_cam_imu_quaternion_xyzw);
+  m.done();
+  a("gyro_noise_density_deg_s", &o->gyro_noise_density_deg_s);
+  a("gyro_prior_weight", &o->gyro_prior_weight);
+  a("gyro_bin_s", &o->gyro_bin_s);
+  a("bias_time_constant_s", &o->bias_time_constant_s);
+  a("bias_sigma_deg_s", &o->bias_sigma_deg_s);
+  a("bias_sigma_min_deg_s", &o->bias_sigma_min_deg_s);
+  a("bias_max_jump_deg_s", &o->bias_max_jump_deg_s);
+  a("attitude_time_constant_s", &o->attitude_time_constant_s);
+  a("attitude_bias_time_constant_s", &o->attitude_bias_time_constant_s);
+  a("max_accel_error_mps2", &o->max_accel_error_mps2);
+  a("gravity_mps2", &o->gravity_mps2);
+}
+
 /// nominal_speed_mps is no key: the baseline drives at frontend.nominal_speed_mps.
 template <typename Archive>
 void fields(Archive& a, FrameBaselineOptions* o) {
@@ -278,6 +297,11 @@ void loadOptions(const YAML::Node& node, const std::string& section, EmvsOptions
   global_map->validate(section + ".global_map");
 }
 
+void loadOptions(const YAML::Node& node, const std::string& section, ImuFusionOptions* o,
+                 std::vector<std::string>* warnings) {
+  load(node, section, o, warnings);
+}
+
 void loadOptions(const YAML::Node& node, const std::string& section, FrameBaselineOptions* o,
                  std::vector<std::string>* warnings) {
   load(node, section, o, warnings);
@@ -301,6 +325,7 @@ YAML::Node optionsToYaml(const PipelineConfig& cfg) {
   Writer m = Writer(root).section("mapping");
   fields(m, &mapping, &global_map);
   emit(&root, "baseline", cfg.baseline);
+  emit(&root, "imu", cfg.imu);
   return root;
 }
 
@@ -319,7 +344,8 @@ PipelineConfig loadPipelineConfig(const std::string& path,
       throw std::runtime_error(path + ": cannot read configuration: " + e.what());
     }
     static const std::set<std::string> known = {
-        "camera_calibration", "T_base_cam", "input", "frontend", "backend", "baseline", "mapping"};
+        "camera_calibration", "T_base_cam", "input", "frontend", "backend",
+        "baseline",           "mapping",    "imu"};
     for (const auto& kv : root)
       if (!known.count(kv.first.as<std::string>()))
         cfg.warnings.push_back(path + ": unknown top-level key '" + kv.first.as<std::string>() +
@@ -340,6 +366,7 @@ PipelineConfig loadPipelineConfig(const std::string& path,
       loadOptions(root, "backend", &cfg.backend, &warnings);
       loadOptions(root, "mapping", &cfg.mapping, &cfg.global_map, &warnings);
       loadOptions(root, "baseline", &cfg.baseline, &warnings);
+      loadOptions(root, "imu", &cfg.imu, &warnings);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument(path + ": " + e.what());
     }

@@ -227,6 +227,9 @@ std::vector<ImuSample> readEcdImu(const std::string& path) {
     if (isBlankOrComment(line)) continue;
     if (!parseNumbers(line, 7, 7, &v))
       in.fail("expected 7 numbers 't ax ay az gx gy gz', got '" + line + "'");
+    // Times are int64 nanoseconds: a stamp beyond +-9.2e9 s cannot be held.
+    if (!(std::abs(v[0]) < 9.2e9))
+      in.fail("time " + std::to_string(v[0]) + " s is outside the representable range");
     ImuSample s;
     s.t_ns = secToNs(v[0]);
     s.accel = Vec3(v[1], v[2], v[3]);

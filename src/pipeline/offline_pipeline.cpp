@@ -68,6 +68,7 @@ void OfflinePipeline::runBackend(const BackendJob& job) {
   const auto t0 = Clock::now();
   if (job.reset) driver_->reset("the input reset: " + job.reset_why);
   driver_->addEvents(job.events);
+  for (const ImuSample& s : job.imu) backend_->addImu(s);
   // The job's arcs are one batch (BackendDriver's processing rule).
   const int64_t newest_pending = job.arcs.empty() ? -1 : job.arcs.back().t_end_ns;
   for (ArcEstimate arc : job.arcs) {
@@ -204,6 +205,7 @@ void OfflinePipeline::addEvents(const EventVector& raw) {
   frontend_s_ += secondsSince(t0);
   if (!backend_) return;
   job.events = events;
+  job.imu.swap(imu_pending_);
   const bool follow = follower_.changesArcs() && !job.arcs.empty();
   if (reset) job.reset = true, job.reset_why = input_.lastEvent();
   submitBackend(std::move(job));
@@ -227,10 +229,20 @@ void OfflinePipeline::addGyro(int64_t t_ns, double w) {
   frontend_.addGyro(t_ns, w);
 }
 
+void OfflinePipeline::enableImu() {
+  if (!backend_) throw std::logic_error("OfflinePipeline::enableImu: no back-end (frontend_only)");
+  backend_->enableImu(config_.imu, config_.imu.T_cam_imu());
+}
+
+void OfflinePipeline::addImu(const ImuSample& sample) {
+  if (usesImu()) imu_pending_.push_back(sample);
+}
+
 void OfflinePipeline::finish() {
   const auto t0 = Clock::now();
   BackendJob job;
   job.at_end = true;
+  job.imu.swap(imu_pending_);
   for (const ArcEstimate& a : frontend_.process()) arcs_.push_back(a), job.arcs.push_back(a);
   frontend_s_ += secondsSince(t0);
   submitBackend(std::move(job));
@@ -392,6 +404,28 @@ nlohmann::json OfflinePipeline::report() const {
       j["stages"]["backend"]["arcs_from_truth"] = {{"blend", arc_truth_blend_},
                                                    {"arcs", arcs_from_truth_},
                                                    {"arcs_outside_truth", arcs_outside_truth_}};
+    if (backend_->usesImu()) {
+      const BackendImuStats& m = backend_->imuStats();
+      // The gyro bias in the IMU's frame (as the sensor reports it, imu_bias.txt) and base_link.
+      const Mat3 R_base_imu = config_.T_base_cam.linear() * config_.imu.T_cam_imu().linear();
+      const Vec3 b_imu = R_base_imu.transpose() * m.gyro_bias_base;
+      j["stages"]["backend"]["imu"] = {
+          {"samples", m.samples_in},
+          {"samples_dropped", m.samples_dropped},
+          {"gyro_prior_bins", m.prior_bins},
+          {"bias_updates", m.bias_updates},
+          {"bias_refused", m.bias_refused},
+          {"yaw_rate_bias_deg_s", m.yaw_bias_rad_s * kDegPerRad},
+          {"yaw_rate_bias_sigma_deg_s", m.yaw_bias_sigma_rad_s * kDegPerRad},
+          {"gyro_bias_base_deg_s",
+           {m.gyro_bias_base.x() * kDegPerRad, m.gyro_bias_base.y() * kDegPerRad,
+            m.gyro_bias_base.z() * kDegPerRad}},
+          {"gyro_bias_imu_deg_s",
+           {b_imu.x() * kDegPerRad, b_imu.y() * kDegPerRad, b_imu.z() * kDegPerRad}},
+          {"attitude_samples", m.attitude.samples},
+          {"attitude_corrections_skipped", m.attitude.corrections_skipped},
+          {"attitude_gaps", m.attitude.gaps}};
+    }
   }
   if (mapper_) {
     j["stages"]["mapping"] = {

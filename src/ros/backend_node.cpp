@@ -34,6 +34,8 @@ BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, 
   events_sub_ = nh_.subscribe(topics::kEvents, 1000, &BackendNode::eventsCallback, this);
   camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &BackendNode::cameraInfoCallback, this);
   arcs_sub_ = nh_.subscribe(topics::kArcs, 1000, &BackendNode::arcCallback, this);
+  if (node_options_.use_imu)
+    imu_sub_ = nh_.subscribe(topics::kImu, 2000, &BackendNode::imuCallback, this);
   trajectory_pub_ = nh_.advertise<SplineTrajectory>(topics::kTrajectory, 10);
   odom_pub_ = nh_.advertise<nav_msgs::Odometry>(topics::kBackendOdom, 100);
   path_pub_ = nh_.advertise<nav_msgs::Path>(topics::kPath, 2);
@@ -62,6 +64,7 @@ void BackendNode::readParameters() {
   params.read("status_period_s", &o.status_period_s);
   params.read("publish_tf", &o.publish_tf);
   params.read("nice", &o.nice);
+  params.read("use_imu", &o.use_imu);
   if (o.config_path.empty()) o.config_path = defaultConfigDir() + "/vwe_vo.yaml";
   params.finish();
   o.validate();
@@ -76,7 +79,9 @@ void BackendNode::readParameters() {
   if (config.input.max_gap_s > 0) driver_options_.max_gap_s = config.input.max_gap_s;
   driver_options_.odom_rate_hz = o.odom_rate_hz;
   driver_options_.validate();
+  imu_options_ = config.imu;
   input_.setBound(InputKind::kEvents, size_t(o.max_queue_events));
+  input_.setBound(InputKind::kImu, size_t(o.max_queue_messages));
   input_.setBound(InputKind::kArc, size_t(o.max_queue_messages));
   if (!o.calibration_path.empty()) {
     input_.setCalibration(
@@ -116,6 +121,19 @@ void BackendNode::arcCallback(const AckermannArc::ConstPtr& msg) {
   input_.push(InputKind::kArc, std::move(input));
 }
 
+void BackendNode::imuCallback(const sensor_msgs::Imu::ConstPtr& msg) {
+  Input input;
+  input.kind = Input::Kind::kImu;
+  input.imu = imuFromMsg(*msg);
+  if (!input.imu.gyro.allFinite() || !input.imu.accel.allFinite()) {
+    input_.countRefused(InputKind::kImu);
+    ROS_WARN_THROTTLE(5, "backend_node: IMU sample at %.3f s with a non-finite value refused (%zu so far)",
+                      nsToSec(input.imu.t_ns), input_.counters()[InputKind::kImu].refused);
+    return;
+  }
+  input_.push(InputKind::kImu, std::move(input));
+}
+
 // ------------------------------------------------------------------------------------------------
 // Worker: the only thread that touches the back-end.
 
@@ -127,6 +145,7 @@ void BackendNode::workerLoop() {
   try {
     camera_ = std::make_unique<CameraModel>(calibration);
     backend_ = std::make_unique<Backend>(backend_options_, *camera_, T_base_cam_);
+    if (node_options_.use_imu) backend_->enableImu(imu_options_, imu_options_.T_cam_imu());
     BackendDriver::Callbacks callbacks;
     callbacks.odometry = [this](int64_t t_ns, const Pose3& T, double v, double omega) {
       publishOdometry(t_ns, T, v, omega);
@@ -151,6 +170,8 @@ void BackendNode::workerLoop() {
         try {
           if (input.kind == Input::Kind::kEvents)
             handleEvents(input.events, input.reset_why);
+          else if (input.kind == Input::Kind::kImu)
+            backend_->addImu(input.imu);
           else
             handleArc(input.arc, newest_arc);
         } catch (const std::exception& e) {

@@ -168,6 +168,14 @@ GyroSample gyroFromMsg(const sensor_msgs::Imu& msg, const Pose3& T_base_cam) {
   return g;
 }
 
+ImuSample imuFromMsg(const sensor_msgs::Imu& msg) {
+  ImuSample s;
+  s.t_ns = toNs(msg.header.stamp);
+  s.gyro = Vec3(msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z);
+  s.accel = Vec3(msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z);
+  return s;
+}
+
 AckermannArc arcToMsg(const ArcEstimate& a, const std::string& frame_id) {
   AckermannArc m;
   m.header.stamp = toRosTime(a.t_ref_ns);

@@ -38,7 +38,7 @@ const char* kUsage =
     "                      [--imu-topic T] [--no-map] [--depth-png] [--baseline] [--baseline-only] "
     "[--image-topic T] [--quiet]\n"
     "                      [--start S] [--truth-arcs GT.tum [--truth-arcs-blend A]] "
-    "[--no-follow-backend]\n"
+    "[--no-follow-backend] [--use-imu]\n"
     "  Runs the front-end and the back-end over recorded events at full speed (a bag from S "
     "seconds\n"
     "  after its start with --start, as a live system that starts late). Writes\n"
@@ -74,7 +74,10 @@ const char* kUsage =
     "  moved towards the front-end's by A (default 0): truth + A * (front-end - truth). A = 0 "
     "shows\n"
     "  the back-end objective's own bias, A = 0.5 how much of a front-end error it corrects.\n"
-    "  The front-end's outputs are unchanged; report.json says how many arcs were replaced.\n";
+    "  The front-end's outputs are unchanged; report.json says how many arcs were replaced.\n"
+    "  --use-imu: the back-end fuses the IMU (bag: --imu-topic, ECD: DIR/imu.txt; config imu:):\n"
+    "  the gyro's yaw rate as a measurement with its bias estimated, pitch and roll from gyro and\n"
+    "  accelerometer in backend.tum and odom.tum; report.json stages.backend.imu has the bias.\n";
 
 /// Duration of the ECD folder's ground truth if there is one (for the progress line), else 0.
 double groundTruthDuration(const std::string& dir) {
@@ -233,7 +236,7 @@ int main(int argc, char** argv) {
   std::map<std::string, std::string> args;
   bool use_odom = false, quiet = false, frontend_only = false, backend_inline = false, map = true,
        depth_png = false;
-  bool baseline = false, baseline_only = false, follow_backend = true;
+  bool baseline = false, baseline_only = false, follow_backend = true, use_imu = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
@@ -253,6 +256,8 @@ int main(int argc, char** argv) {
       baseline = true;
     } else if (a == "--baseline-only") {
       baseline = baseline_only = true;
+    } else if (a == "--use-imu") {
+      use_imu = true;
     } else if (a == "--no-follow-backend") {
       follow_backend = false;
     } else if (a == "--quiet") {
@@ -293,6 +298,11 @@ int main(int argc, char** argv) {
                 << args["--truth-arcs-blend"] << "')\n";
       return 2;
     }
+  }
+  if (use_imu && frontend_only) {
+    std::cerr
+        << "vwe_vo_offline: --use-imu feeds the back-end: it cannot go with --frontend-only\n";
+    return 2;
   }
   if (args.count("--truth-arcs") && frontend_only) {
     std::cerr
@@ -337,6 +347,8 @@ int main(int argc, char** argv) {
       pipeline.setBackendArcsFromTruth(vwe_vo::readTum(args["--truth-arcs"]), truth_blend);
     }
     if (baseline) pipeline.enableBaseline();
+    if (use_imu) pipeline.enableImu();
+    const vwe_vo::Pose3 T_base_imu = cfg.T_base_cam * cfg.imu.T_cam_imu();
     size_t frames = 0;
     if (args.count("--ecd") && baseline) frames = feedEcdFrames(args["--ecd"], &pipeline);
     if (args.count("--ecd")) {
@@ -345,7 +357,21 @@ int main(int argc, char** argv) {
         const double total = groundTruthDuration(args["--ecd"]);
         vwe_vo::EcdEventReader reader(ecd_events, cfg.camera.width, cfg.camera.height);
         vwe_vo::EventVector chunk;
+        std::vector<vwe_vo::ImuSample> imu;
+        if (use_imu) {
+          const std::string imu_path = args["--ecd"] + "/imu.txt";
+          if (!vwe_vo::fileExists(imu_path)) throw std::runtime_error("--use-imu: no " + imu_path);
+          imu = vwe_vo::readEcdImu(imu_path);
+          input["imu_samples"] = imu.size();
+        }
+        size_t next_imu = 0;
         while (reader.read(50000, &chunk) > 0) {
+          // The IMU in time order with the events: the samples up to the chunk's newest event.
+          for (; next_imu < imu.size() && imu[next_imu].t_ns <= chunk.back().t_ns; ++next_imu) {
+            const vwe_vo::ImuSample& s = imu[next_imu];
+            pipeline.addGyro(s.t_ns, (T_base_imu.linear() * s.gyro).z());
+            pipeline.addImu(s);
+          }
           pipeline.addEvents(chunk);
           printInputWarning(&pipeline);
           progress.update(pipeline, total);
@@ -399,8 +425,9 @@ int main(int argc, char** argv) {
           }
         } else if (m.getTopic() == imu_topic) {
           if (const auto imu = m.instantiate<sensor_msgs::Imu>()) {
-            const vwe_vo::GyroSample g = vwe_vo::gyroFromMsg(*imu, cfg.T_base_cam);
+            const vwe_vo::GyroSample g = vwe_vo::gyroFromMsg(*imu, T_base_imu);
             pipeline.addGyro(g.t_ns, g.yaw_rate_rad_s);
+            if (use_imu) pipeline.addImu(vwe_vo::imuFromMsg(*imu));
           }
         }
       }

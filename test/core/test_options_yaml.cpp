@@ -50,6 +50,13 @@ void expectSameKeysAndValues(const YAML::Node& expected, const YAML::Node& file,
       expectSameKeysAndValues(e, v, full);
       continue;
     }
+    if (e.IsSequence()) {  // e.g. imu.T_cam_imu.translation
+      ASSERT_TRUE(v.IsSequence()) << full;
+      ASSERT_EQ(e.size(), v.size()) << full;
+      for (size_t i = 0; i < e.size(); ++i)
+        EXPECT_NEAR(e[i].as<double>(), v[i].as<double>(), 1e-12) << full << "[" << i << "]";
+      continue;
+    }
     ASSERT_TRUE(e.IsScalar() && v.IsScalar()) << full;
     double a = 0, b = 0;
     if (isNumber(e, &a) && isNumber(v, &b))

@@ -14,6 +14,7 @@
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
+#include "vwe_vo/sensor/imu.h"
 #include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/trajectory/bspline.h"
 #include "vwe_vo/trajectory/dead_reckoning.h"
@@ -82,6 +83,19 @@ struct BackendStats {
   double gain_sum = 0.0;           // sum over accepted refinements of f_final / f_start - 1
   double solver_s = 0.0;           // wall time in the solver [s]
   double last_gain = 0.0;          // objective ratio final / initial of the last refinement
+};
+
+/// The IMU's part of the back-end (Backend::enableImu).
+struct BackendImuStats {
+  size_t samples_in = 0;
+  size_t samples_dropped = 0;          // non-finite, or older than the previous sample
+  size_t prior_bins = 0;               // gyro bins used by the refinements (summed)
+  size_t bias_updates = 0;             // refinements whose window measured the yaw-rate bias
+  size_t bias_refused = 0;             // ... too far from the estimate (GyroBiasFilter): not used
+  double yaw_bias_rad_s = 0.0;         // the slow filter's yaw-rate bias estimate [rad/s]
+  double yaw_bias_sigma_rad_s = 0.0;   // its spread in the next solve's prior [rad/s]
+  Vec3 gyro_bias_base = Vec3::Zero();  // x, y from the attitude filter, z = yaw_bias [rad/s]
+  AttitudeStats attitude;
 };
 
 /// One volume of the multi-volume objective: reference time and its (subsampled) events.
@@ -237,6 +251,21 @@ void fitControlPoints(BSpline* spline, int first, const std::vector<double>& u,
 class Backend {
  public:
   Backend(const BackendOptions& options, const CameraModel& camera, const Pose3& T_base_cam);
+  ~Backend();
+
+  /// Fuses the IMU (call before the first data; options validated): addImu() samples then give
+  /// the refinements the gyro's yaw rate as a measurement (GyroRatePrior, its bias estimated) and
+  /// the poses (poseAt, sampleTrajectory) the body's pitch and roll from the attitude filter,
+  /// composed onto the planar spline. Without it (or without samples) nothing changes.
+  void enableImu(const ImuFusionOptions& options, const Pose3& T_cam_imu);
+  bool usesImu() const { return imu_ != nullptr; }
+  /// One IMU sample in the IMU frame (time order; ignored unless enableImu()). It is used once the
+  /// arcs reach its time.
+  void addImu(const ImuSample& sample);
+  /// Valid with usesImu().
+  const BackendImuStats& imuStats() const;
+  /// The estimated tilt of base_link at t_ns (zero without the IMU).
+  Tilt tiltAt(int64_t t_ns) const;
 
   const BackendOptions& options() const { return options_; }
   /// Whether the arcs' speeds are measurements (/odom), the default, or the front-end's nominal
@@ -275,7 +304,11 @@ class Backend {
   /// dead reckoning (each arc's rates over its own window) anchored on the spline at
   /// processedUntil(); before the first refinement that dead reckoning alone. False if t_ns is
   /// outside [first arc, newest arc].
+  /// With the IMU (enableImu) the pose is composed with the estimated tilt (tiltAt); the rates
+  /// are the planar pose's.
   bool poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const;
+  /// The same without the tilt (the planar pose; equal to poseAt without the IMU).
+  bool planarPoseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const;
   /// The front-end's dead reckoning the spline is fit to beyond its refined part (rates ramping
   /// between the arcs' middles with interpolate_arc_rates, else steps), in the back-end's first
   /// odom frame; the identity before the first arc.
@@ -294,6 +327,13 @@ class Backend {
   void extendSpline(int64_t t_new_ns);
   std::vector<BSpline::Interval> standstillIntervals(int64_t epoch_ns) const;
   void refine(int64_t t_new_ns);
+  // The IMU (backend_imu.cpp).
+  struct Imu;
+  std::unique_ptr<Imu> imu_;
+  void advanceImu();
+  std::unique_ptr<SplinePrior> makeGyroPrior(double u_window, double u_new, int first_free);
+  void updateGyroBias(const SplinePrior* prior, int64_t t_new_ns);
+  Pose3 withTilt(int64_t t_ns, const Pose3& T_planar) const;
 
   BackendOptions options_;
   bool speeds_measured_ = true;

@@ -13,6 +13,7 @@
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/mapping/emvs.h"
 #include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sensor/imu.h"
 #include "vwe_vo/sensor/timestamp_policy.h"
 
 namespace YAML {
@@ -32,6 +33,9 @@ void loadOptions(const YAML::Node& node, const std::string& section,
 /// The mapping: section (EmvsOptions with nested volume: and global_map:).
 void loadOptions(const YAML::Node& node, const std::string& section, EmvsOptions* options,
                  GlobalMapOptions* global_map, std::vector<std::string>* warnings);
+/// The imu: section (T_cam_imu and the IMU fusion, sensor/imu.h).
+void loadOptions(const YAML::Node& node, const std::string& section, ImuFusionOptions* options,
+                 std::vector<std::string>* warnings);
 /// nominal_speed_mps is not read: the baseline uses frontend.nominal_speed_mps.
 void loadOptions(const YAML::Node& node, const std::string& section, FrameBaselineOptions* options,
                  std::vector<std::string>* warnings);
@@ -49,6 +53,7 @@ struct PipelineConfig {
   GlobalMapOptions global_map;
   FrameBaselineOptions
       baseline;  // the frame-based baseline (vwe_vo_offline --baseline, frame_baseline_node)
+  ImuFusionOptions imu;        // T_cam_imu and the IMU fusion (vwe_vo_offline --use-imu, use_imu)
   bool frontend_only = false;  // skip the back-end (set by the caller, not the file)
   bool backend_thread = true;  // OfflinePipeline: the back-end on its own thread, fed in order
                                // (as backend_node beside frontend_node; same results)
@@ -62,7 +67,7 @@ PipelineConfig loadPipelineConfig(const std::string& path,
                                   const std::string& default_calibration_path = "");
 
 /// Every option of cfg under its key, as loadPipelineConfig reads them: T_base_cam (translation
-/// and quaternion_xyzw), frontend, backend, mapping (with global_map) and baseline. The values
+/// and quaternion_xyzw), frontend, backend, mapping (with global_map), baseline and imu. The values
 /// in use, for logging; loading it again gives the same options.
 YAML::Node optionsToYaml(const PipelineConfig& cfg);
 

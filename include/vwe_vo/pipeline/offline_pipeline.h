@@ -47,6 +47,12 @@ class OfflinePipeline {
   const TimestampPolicy& input() const { return input_; }
   void addOdometry(int64_t t_ns, double v_mps, double yaw_rate_rad_s);
   void addGyro(int64_t t_ns, double yaw_rate_rad_s);
+  /// The back-end fuses the IMU (config.imu; Backend::enableImu). Call before the first data.
+  void enableImu();
+  bool usesImu() const { return backend_ && backend_->usesImu(); }
+  /// One IMU sample in the IMU frame (ignored unless enableImu()); it goes to the back-end with
+  /// the next events, in input order. The front-end's gyro prior takes addGyro() as before.
+  void addImu(const ImuSample& sample);
   /// Processes what is left and waits for the back-end. Call once at the end. An error of the
   /// back-end's thread is rethrown here (or by the next addEvents).
   void finish();
@@ -135,7 +141,8 @@ class OfflinePipeline {
   void followBackend();
   std::unique_ptr<FrameBaseline> baseline_;
   std::vector<ArcEstimate> arcs_;
-  Trajectory3 arc_truth_;  // setBackendArcsFromTruth()
+  std::vector<ImuSample> imu_pending_;  // for the next back-end job
+  Trajectory3 arc_truth_;               // setBackendArcsFromTruth()
   double arc_truth_blend_ = 0.0;
   size_t arcs_from_truth_ = 0, arcs_outside_truth_ = 0;
   size_t events_ = 0;
@@ -147,6 +154,7 @@ class OfflinePipeline {
   struct BackendJob {
     EventVector events;
     std::vector<ArcEstimate> arcs;  // the arcs the front-end made after these events
+    std::vector<ImuSample> imu;     // IMU samples since the previous job (enableImu)
     bool at_end = false;
     bool reset = false;  // the input reset (a jump back or a gap): reset the back-end first
     std::string reset_why;

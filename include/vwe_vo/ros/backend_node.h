@@ -10,6 +10,7 @@
 #include <nav_msgs/Path.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Imu.h>
 #include <tf2_ros/transform_broadcaster.h>
 
 #include <cstdint>
@@ -42,7 +43,8 @@ struct BackendNodeOptions {
   double status_period_s = 10.0;   // ~status_period_s: period of the one-line status [s]
   bool publish_tf = true;          // ~publish_tf: broadcast odom -> base_link
   int nice = 0;                    // ~nice: CPU priority (0..19; higher yields to the front-end)
-  void validate() const;           // throws std::invalid_argument naming the parameter
+  bool use_imu = false;   // ~use_imu: fuse /dvs/imu (gyro yaw rate, pitch and roll; config imu:)
+  void validate() const;  // throws std::invalid_argument naming the parameter
 };
 
 class BackendNode {
@@ -58,16 +60,18 @@ class BackendNode {
 
  private:
   struct Input {
-    enum class Kind { kEvents, kArc } kind = Kind::kEvents;
+    enum class Kind { kEvents, kArc, kImu } kind = Kind::kEvents;
     EventVector events;
     std::string reset_why;  // the input's timestamp policy resets before these events
     ArcEstimate arc;
+    ImuSample imu;
   };
 
   void readParameters();
   void eventsCallback(const EventArray::ConstPtr& msg);
   void cameraInfoCallback(const sensor_msgs::CameraInfo::ConstPtr& msg);
   void arcCallback(const AckermannArc::ConstPtr& msg);
+  void imuCallback(const sensor_msgs::Imu::ConstPtr& msg);
 
   void workerLoop();
   void handleEvents(const EventVector& events, const std::string& reset_why);
@@ -82,13 +86,14 @@ class BackendNode {
 
   ros::NodeHandle nh_, pnh_;
   const Hosting hosting_;
-  ros::Subscriber events_sub_, camera_info_sub_, arcs_sub_;
+  ros::Subscriber events_sub_, camera_info_sub_, arcs_sub_, imu_sub_;
   ros::Publisher trajectory_pub_, odom_pub_, path_pub_;
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf_;
 
   BackendNodeOptions node_options_;
   BackendOptions backend_options_;
   BackendDriverOptions driver_options_;  // ~odom_rate_hz; max_gap_s from the config's input:
+  ImuFusionOptions imu_options_;
   Pose3 T_base_cam_ = Pose3::Identity();
 
   NodeInput<Input> input_{"backend_node"};  // callbacks -> worker, open once calibrated

@@ -24,6 +24,7 @@
 #include "vwe_vo/mapping/emvs.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
+#include "vwe_vo/sensor/imu.h"
 #include "vwe_vo/trajectory/bspline.h"
 
 namespace vwe_vo {
@@ -83,6 +84,8 @@ struct GyroSample {
   double yaw_rate_rad_s = 0.0;
 };
 GyroSample gyroFromMsg(const sensor_msgs::Imu& msg, const Pose3& T_base_cam);
+/// The whole sample in the IMU's frame (Backend::addImu drops non-finite ones).
+ImuSample imuFromMsg(const sensor_msgs::Imu& msg);
 
 AckermannArc arcToMsg(const ArcEstimate& arc, const std::string& frame_id);
 ArcEstimate arcFromMsg(const AckermannArc& msg);

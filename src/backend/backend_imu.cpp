@@ -1,0 +1,125 @@
+// The Backend's IMU fusion (Backend::enableImu): attitude filter, gyro prior, yaw-rate bias.
+#include "backend_imu.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace vwe_vo {
+
+void Backend::enableImu(const ImuFusionOptions& options, const Pose3& T_cam_imu) {
+  options.validate();
+  imu_ = std::make_unique<Imu>(options, Pose3(T_base_cam_ * T_cam_imu));
+  imu_->stats.yaw_bias_sigma_rad_s = imu_->bias.sigma();
+}
+
+const BackendImuStats& Backend::imuStats() const {
+  imu_->stats.attitude = imu_->attitude.stats();
+  imu_->stats.gyro_bias_base = imu_->attitude.bias();
+  return imu_->stats;
+}
+
+void Backend::addImu(const ImuSample& sample) {
+  if (!imu_) return;
+  ++imu_->stats.samples_in;
+  if (!sample.gyro.allFinite() || !sample.accel.allFinite() || sample.t_ns < imu_->newest_ns) {
+    ++imu_->stats.samples_dropped;
+    return;
+  }
+  imu_->newest_ns = sample.t_ns;
+  imu_->pending.push_back(rotateImuSample(sample, imu_->T_base_imu));
+  // Bounded while no arcs arrive: what the arcs will never reach (older than the window) goes.
+  const int64_t keep_ns = secToNs(options_.window_s + options_.update_interval_s + 5.0);
+  while (imu_->pending.front().t_ns < sample.t_ns - keep_ns) imu_->pending.pop_front();
+  if (dead_reckoning_) advanceImu();
+}
+
+Tilt Backend::tiltAt(int64_t t_ns) const {
+  return imu_ ? imu_->tilts.at(t_ns) : Tilt();
+}
+
+Pose3 Backend::withTilt(int64_t t_ns, const Pose3& T_planar) const {
+  if (imu_->tilts.empty()) return T_planar;
+  Pose3 T = T_planar;
+  T.linear() = T_planar.linear() * imu_->tilts.at(t_ns).rotation();
+  return T;
+}
+
+void Backend::advanceImu() {
+  Imu& m = *imu_;
+  const int64_t t0 = dead_reckoning_ ? dead_reckoning_->startTime() : -1;
+  constexpr int64_t kMotionStep_ns = 10000000;  // vehicle motion refreshed every 10 ms
+  constexpr int64_t kDiff_ns = 100000000;       // its derivatives: central differences over 0.2 s
+  while (!m.pending.empty() && m.pending.front().t_ns <= newest_arc_ns_) {
+    const ImuSample s = m.pending.front();
+    m.pending.pop_front();
+    if (t0 >= 0 && s.t_ns >= t0 && (m.motion_ns < 0 || s.t_ns >= m.motion_ns + kMotionStep_ns)) {
+      // The spline's (or the arcs') speed and yaw rate, with a central difference for dv.
+      Pose3 T;
+      double v = 0, w = 0, va = 0, vb = 0, unused = 0;
+      const int64_t a = std::max(t0, s.t_ns - kDiff_ns),
+                    b = std::min(newest_arc_ns_, s.t_ns + kDiff_ns);
+      if (planarPoseAt(s.t_ns, &T, &v, &w) && planarPoseAt(a, &T, &va, &unused) &&
+          planarPoseAt(b, &T, &vb, &unused)) {
+        const double dt = dtSec(b, a);
+        m.motion.v = v;
+        m.motion.omega = w;
+        m.motion.dv = dt > 0 ? (vb - va) / dt : 0.0;
+      }
+      m.motion_ns = s.t_ns;
+    }
+    m.attitude.add(s, (t0 >= 0 && s.t_ns >= t0) ? m.motion : VehicleMotion());
+    const Tilt tilt = m.attitude.tilt();
+    m.tilts.add(s.t_ns, tilt);
+    const Vec3& b = m.attitude.bias();
+    m.yaw_rates.push_back(
+        {s.t_ns, eulerYawRate(Vec3(s.gyro.x() - b.x(), s.gyro.y() - b.y(), s.gyro.z()), tilt.roll,
+                              tilt.pitch)});
+  }
+  const int64_t keep_ns = secToNs(options_.window_s + options_.update_interval_s + 1.0);
+  while (!m.yaw_rates.empty() && m.yaw_rates.front().t_ns < newest_arc_ns_ - keep_ns)
+    m.yaw_rates.pop_front();
+}
+
+std::unique_ptr<SplinePrior> Backend::makeGyroPrior(double u_window, double u_new, int first_free) {
+  Imu& m = *imu_;
+  if (m.options.gyro_prior_weight == 0.0 || m.yaw_rates.empty()) return nullptr;
+  const double bin = m.options.gyro_bin_s;
+  std::vector<GyroRatePrior::Bin> bins;
+  auto it = m.yaw_rates.begin();
+  for (double ua = u_window; ua + bin <= u_new + 1e-9; ua += bin) {
+    const int64_t ta = spline_->epochNs() + secToNs(ua), tb = ta + secToNs(bin);
+    while (it != m.yaw_rates.end() && it->t_ns < ta) ++it;
+    double sum = 0.0;
+    size_t n = 0;
+    int64_t first = -1, last = -1;
+    for (auto jt = it; jt != m.yaw_rates.end() && jt->t_ns < tb; ++jt, ++n) {
+      sum += jt->rate;
+      if (first < 0) first = jt->t_ns;
+      last = jt->t_ns;
+    }
+    // Only bins the samples cover (at least 80 % of their length, two samples).
+    if (n < 2 || dtSec(last, first) < 0.8 * bin * (double(n) - 1.0) / double(n)) continue;
+    bins.push_back({ua, ua + bin, sum / double(n)});
+  }
+  if (bins.empty()) return nullptr;
+  auto prior = std::make_unique<GyroRatePrior>(
+      spline_, first_free, bins, m.options.gyro_prior_weight,
+      m.options.gyro_noise_density_deg_s / kDegPerRad, m.bias.bias(), m.bias.sigma());
+  m.stats.prior_bins += prior->numBins();
+  return prior;
+}
+
+void Backend::updateGyroBias(const SplinePrior* prior, int64_t t_new_ns) {
+  Imu& m = *imu_;
+  const auto* gyro = static_cast<const GyroRatePrior*>(prior);
+  if (gyro->numBins() == 0) return;
+  const double dt = m.last_bias_update_ns < 0 ? 0.0 : dtSec(t_new_ns, m.last_bias_update_ns);
+  if (!m.bias.add(gyro->measuredBias(), dt)) ++m.stats.bias_refused;
+  m.last_bias_update_ns = t_new_ns;
+  ++m.stats.bias_updates;
+  m.stats.yaw_bias_rad_s = m.bias.bias();
+  m.stats.yaw_bias_sigma_rad_s = m.bias.sigma();
+  m.attitude.setYawBias(m.bias.bias());
+}
+
+}  // namespace vwe_vo

@@ -1,0 +1,266 @@
+// The IMU layer: attitude filter (known rotations, body rates by finite differences, x/y bias
+// recovery), the gyro's yaw-rate prior (gradient against finite differences, bias recovery) and
+// the bias filter.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include "vwe_vo/backend/gyro_prior.h"
+#include "vwe_vo/sensor/imu.h"
+
+using namespace vwe_vo;
+
+namespace {
+
+constexpr double kG = 9.80665;
+
+Mat3 rotZYX(double yaw, double pitch, double roll) {
+  return (Eigen::AngleAxisd(yaw, Vec3::UnitZ()) * Eigen::AngleAxisd(pitch, Vec3::UnitY()) *
+          Eigen::AngleAxisd(roll, Vec3::UnitX()))
+      .toRotationMatrix();
+}
+
+Vec3 vee(const Mat3& W) {
+  return Vec3(W(2, 1) - W(1, 2), W(0, 2) - W(2, 0), W(1, 0) - W(0, 1)) * 0.5;
+}
+
+// A vehicle driving a circle at v and yaw rate omega while its body rolls and pitches
+// sinusoidally; the IMU at lever arm r in base_link, its samples at 1 kHz (white noise of the
+// MPU-6150's densities, a constant gyro bias), body rates from central differences of R(t).
+struct Motion {
+  double v = 6.0, omega = 0.2;
+  double roll_amp = 1.5 * kPi / 180, pitch_amp = 1.0 * kPi / 180;
+  Vec3 lever_arm = Vec3(1.2, 0.0, 1.3);
+  Mat3 R(double t) const {
+    return rotZYX(omega * t, pitch_amp * std::cos(1.3 * t) + 0.01,
+                  roll_amp * std::sin(0.9 * t) - 0.02);
+  }
+  Vec3 omegaBody(double t) const {
+    const double h = 1e-5;
+    return vee(R(t).transpose() * (R(t + h) - R(t - h)) / (2 * h));
+  }
+  ImuSample sample(double t, const Vec3& bias, std::mt19937_64* rng) const {
+    std::normal_distribution<double> n(0.0, 1.0);
+    const double sg = 0.005 * kPi / 180 * std::sqrt(1000.0), sa = 400e-6 * kG * std::sqrt(1000.0);
+    // Acceleration of the IMU's origin in odom: the circle's centripetal one plus the lever arm's,
+    // by second central differences of its position.
+    auto pos = [&](double s) {
+      const double psi = omega * s;
+      const Vec3 c(v / omega * std::sin(psi), v / omega * (1 - std::cos(psi)), 0.0);
+      return Vec3(c + R(s) * lever_arm);
+    };
+    const double h = 1e-3;
+    const Vec3 a = (pos(t + h) - 2 * pos(t) + pos(t - h)) / (h * h);
+    ImuSample s;
+    s.t_ns = secToNs(t);
+    s.gyro = omegaBody(t) + bias;
+    s.accel = R(t).transpose() * (a + Vec3(0, 0, kG));
+    for (int i = 0; i < 3; ++i) s.gyro(i) += sg * n(*rng), s.accel(i) += sa * n(*rng);
+    return s;
+  }
+};
+
+}  // namespace
+
+TEST(Imu, EulerYawRateMatchesFiniteDifferencesOfTheYaw) {
+  const Motion m;
+  for (double t : {0.3, 1.7, 4.2}) {
+    const Vec3 w = m.omegaBody(t);
+    const double pitch = m.pitch_amp * std::cos(1.3 * t) + 0.01;
+    const double roll = m.roll_amp * std::sin(0.9 * t) - 0.02;
+    // d yaw / dt = omega exactly.
+    EXPECT_NEAR(eulerYawRate(w, roll, pitch), m.omega, 1e-7) << t;
+    // Not the body z rate: the tilt's own rates mix in.
+    EXPECT_GT(std::abs(w.z() - m.omega), 1e-6) << t;
+  }
+}
+
+TEST(Imu, TiltRotationAndRotatedSamples) {
+  Tilt t;
+  t.roll = 0.03, t.pitch = -0.02;
+  EXPECT_TRUE(t.rotation().isApprox(rotZYX(0, -0.02, 0.03), 1e-12));
+  ImuFusionOptions o;
+  o.T_cam_imu_quaternion_xyzw = {0.0, 0.0, std::sin(0.25), std::cos(0.25)};
+  o.validate();
+  ImuSample s;
+  s.gyro = Vec3(0.1, 0.2, 0.3);
+  s.accel = Vec3(0, 0, kG);
+  const Pose3 T_base_imu = o.T_cam_imu();
+  const ImuSample r = rotateImuSample(s, T_base_imu);
+  EXPECT_TRUE(r.gyro.isApprox(Eigen::AngleAxisd(0.5, Vec3::UnitZ()) * s.gyro, 1e-12));
+  EXPECT_NEAR(r.accel.z(), kG, 1e-12);
+}
+
+TEST(Imu, OptionsValidationNamesTheKey) {
+  ImuFusionOptions o;
+  o.T_cam_imu_quaternion_xyzw = {0, 0, 0, 2};
+  try {
+    o.validate();
+    FAIL() << "a non-unit quaternion was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("imu.T_cam_imu.quaternion_xyzw"), std::string::npos);
+  }
+  o = ImuFusionOptions();
+  o.bias_sigma_min_deg_s = 1.0;  // above bias_sigma_deg_s
+  EXPECT_THROW(o.validate(), std::invalid_argument);
+}
+
+// A static, tilted IMU with x/y gyro biases: the filter finds the tilt and the biases.
+TEST(Imu, AttitudeFilterRecoversAStaticTiltAndTheXYGyroBias) {
+  ImuFusionOptions o;
+  AttitudeFilter f(o, Vec3::Zero());
+  const Mat3 R = rotZYX(0.4, -2.0 * kPi / 180, 3.0 * kPi / 180);
+  const Vec3 bias(0.3 * kPi / 180, -0.4 * kPi / 180, 0.0);
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (int k = 0; k <= 120000; ++k) {
+    ImuSample s;
+    s.t_ns = int64_t(k) * 1000000;
+    s.gyro = bias + 0.005 * kPi / 180 * std::sqrt(1000.0) * Vec3(n(rng), n(rng), n(rng));
+    s.accel = R.transpose() * Vec3(0, 0, kG) + 0.12 * Vec3(n(rng), n(rng), n(rng));
+    f.add(s, VehicleMotion());
+  }
+  EXPECT_NEAR(f.tilt().roll, 3.0 * kPi / 180, 0.01 * kPi / 180);
+  EXPECT_NEAR(f.tilt().pitch, -2.0 * kPi / 180, 0.01 * kPi / 180);
+  EXPECT_NEAR(f.bias().x(), bias.x(), 0.01 * kPi / 180);
+  EXPECT_NEAR(f.bias().y(), bias.y(), 0.01 * kPi / 180);
+}
+
+// Driving a circle while the body rolls and pitches: with the centripetal and lever-arm
+// accelerations removed the tilt follows the truth; without the compensation the roll is off by
+// the centripetal angle atan(v omega / g).
+TEST(Imu, AttitudeFilterFollowsAMovingBodyWithItsAccelerationRemoved) {
+  const Motion m;
+  const Vec3 bias(0.2 * kPi / 180, -0.3 * kPi / 180, 0.1 * kPi / 180);
+  ImuFusionOptions o;
+  AttitudeFilter comp(o, m.lever_arm), raw(o, Vec3::Zero());
+  comp.setYawBias(bias.z());
+  raw.setYawBias(bias.z());
+  std::mt19937_64 rng(5);
+  VehicleMotion vm;
+  vm.v = m.v, vm.omega = m.omega;
+  double se = 0.0, se_raw = 0.0;
+  int n = 0;
+  for (int k = 0; k <= 60000; ++k) {
+    const double t = k * 1e-3;
+    const ImuSample s = m.sample(t, bias, &rng);
+    comp.add(s, vm);
+    raw.add(s, VehicleMotion());
+    if (t < 30.0) continue;  // converged (bias integral)
+    const double roll = m.roll_amp * std::sin(0.9 * t) - 0.02;
+    const double pitch = m.pitch_amp * std::cos(1.3 * t) + 0.01;
+    se += std::pow(comp.tilt().roll - roll, 2) + std::pow(comp.tilt().pitch - pitch, 2);
+    se_raw += std::pow(raw.tilt().roll - roll, 2);
+    ++n;
+  }
+  const double rms_deg = std::sqrt(se / n) * 180 / kPi;
+  const double rms_raw_deg = std::sqrt(se_raw / n) * 180 / kPi;
+  std::printf("[imu] moving body: tilt RMS %.4f deg (uncompensated roll %.2f deg)\n", rms_deg,
+              rms_raw_deg);
+  EXPECT_LT(rms_deg, 0.045) << rms_deg;        // measured 0.031
+  EXPECT_GT(rms_raw_deg, 5.0) << rms_raw_deg;  // atan(1.2 / 9.81) = 7 deg
+  EXPECT_NEAR(comp.bias().x(), bias.x(), 0.02 * kPi / 180);
+  EXPECT_NEAR(comp.bias().y(), bias.y(), 0.02 * kPi / 180);
+}
+
+TEST(Imu, TiltHistoryInterpolatesAndHoldsAtTheEnds) {
+  TiltHistory h(5000000);
+  Tilt a, b;
+  a.roll = 0.01, b.roll = 0.03;
+  h.add(0, a);
+  h.add(1000000, b);  // within the step: ignored
+  h.add(10000000, b);
+  EXPECT_NEAR(h.at(5000000).roll, 0.02, 1e-12);
+  EXPECT_NEAR(h.at(-5).roll, 0.01, 1e-12);
+  EXPECT_NEAR(h.at(20000000).roll, 0.03, 1e-12);
+}
+
+namespace {
+
+// A planar spline whose yaw rate varies (0.1 + 0.07 sin 2t rad/s) at 1 m/s, 3.2 s.
+std::shared_ptr<BSpline> curvedSpline() {
+  std::vector<int64_t> t;
+  std::vector<Vec2> p;
+  Vec2 c(0, 0);
+  double psi = 0.0;
+  const double dt = 0.001;
+  for (double s = 0; s <= 3.2 + 1e-9; s += dt) {
+    t.push_back(secToNs(s));
+    p.push_back(c);
+    const double w = 0.1 + 0.07 * std::sin(2.0 * s);
+    c += dt * Vec2(std::cos(psi + 0.5 * w * dt), std::sin(psi + 0.5 * w * dt));
+    psi += w * dt;
+  }
+  BSplineFitOptions o;
+  o.knot_spacing_s = 0.3;
+  return std::make_shared<BSpline>(fitBSpline(t, p, o));
+}
+
+std::vector<GyroRatePrior::Bin> gyroBins(const BSpline& s, double bias) {
+  std::vector<GyroRatePrior::Bin> bins;
+  for (double u = 0.3; u + 0.05 <= 3.0; u += 0.05)
+    bins.push_back({u, u + 0.05, wrapAngle(s.heading(u + 0.05) - s.heading(u)) / 0.05 + bias});
+  return bins;
+}
+
+}  // namespace
+
+TEST(Imu, GyroPriorRecoversABiasAndIsFlatOnTheTruth) {
+  auto spline = curvedSpline();
+  const double b = 0.3 * kPi / 180, nd = 0.005 * kPi / 180;
+  // A wide bias prior: the bias comes from the gyro against the spline.
+  const GyroRatePrior wide(spline, 4, gyroBins(*spline, b), 1e-3, nd, 0.0, 10 * kPi / 180);
+  EXPECT_GT(wide.numBins(), 30u);
+  EXPECT_NEAR(wide.measuredBias(), b, 1e-9);
+  EXPECT_NEAR(wide.bias(), b, 1e-4 * b);
+  EXPECT_LT(wide.evaluate(nullptr), 1e-6);
+  // A tight prior at zero holds the bias there and the residuals cost.
+  const GyroRatePrior tight(spline, 4, gyroBins(*spline, b), 1e-3, nd, 0.0, 1e-4 * kPi / 180);
+  EXPECT_NEAR(tight.bias(), 0.0, 0.01 * b);
+  // weight * (bin / nd^2) * b^2 = 1e-3 * 0.05 * (0.3 / 0.005)^2 (bias held at 0).
+  EXPECT_NEAR(tight.evaluate(nullptr), 0.18, 0.005);
+}
+
+TEST(Imu, GyroPriorGradientMatchesCentralFiniteDifferences) {
+  auto spline = curvedSpline();
+  const int first_free = 4;
+  const double nd = 0.005 * kPi / 180;
+  const GyroRatePrior prior(spline, first_free, gyroBins(*spline, 0.2 * kPi / 180), 1e-3, nd,
+                            0.1 * kPi / 180, 0.1 * kPi / 180);
+  for (int i = first_free; i < spline->numControlPoints(); ++i)
+    spline->setControlPoint(
+        i, spline->controlPoints()[i] + 0.003 * Vec2(std::cos(2.0 * i), std::sin(7.0 * i)));
+  Eigen::VectorXd g;
+  ASSERT_GT(prior.evaluate(&g), 0.0);
+  ASSERT_EQ(g.size(), 2 * (spline->numControlPoints() - first_free));
+  const double h = 1e-6;
+  for (int k = 0; k < g.size(); ++k) {
+    const int i = first_free + k / 2;
+    const Vec2 P = spline->controlPoints()[i];
+    Vec2 d = Vec2::Zero();
+    d(k % 2) = h;
+    spline->setControlPoint(i, P + d);
+    const double fp = prior.evaluate(nullptr);
+    spline->setControlPoint(i, P - d);
+    const double fm = prior.evaluate(nullptr);
+    spline->setControlPoint(i, P);
+    EXPECT_NEAR(g[k], (fp - fm) / (2 * h), 1e-5 * g.norm()) << "param " << k;
+  }
+}
+
+TEST(Imu, GyroBiasFilterAveragesThenForgetsSlowly) {
+  GyroBiasFilter f(20.0, 0.5, 0.02, 1.0);
+  EXPECT_DOUBLE_EQ(f.sigma(), 0.5);
+  f.add(1.0, 0.0);
+  f.add(3.0, 1.0);
+  EXPECT_DOUBLE_EQ(f.bias(), 2.0);  // running mean while 1 / n > dt / tau
+  EXPECT_TRUE(f.add(2.0, 1.0));
+  EXPECT_FALSE(f.add(5.0, 1.0));  // a jump: refused
+  EXPECT_EQ(f.refused(), 1u);
+  for (int k = 0; k < 1000; ++k) f.add(2.0 * std::exp(-0.01 * k), 1.0);
+  EXPECT_NEAR(f.bias(), 0.0, 1.7e-4);  // follows with the lag of tau (measured 1.1e-4)
+  EXPECT_DOUBLE_EQ(f.sigma(), 0.02);
+}
