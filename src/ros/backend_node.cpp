@@ -127,8 +127,9 @@ void BackendNode::imuCallback(const sensor_msgs::Imu::ConstPtr& msg) {
   input.imu = imuFromMsg(*msg);
   if (!input.imu.gyro.allFinite() || !input.imu.accel.allFinite()) {
     input_.countRefused(InputKind::kImu);
-    ROS_WARN_THROTTLE(5, "backend_node: IMU sample at %.3f s with a non-finite value refused (%zu so far)",
-                      nsToSec(input.imu.t_ns), input_.counters()[InputKind::kImu].refused);
+    ROS_WARN_THROTTLE(
+        5, "backend_node: IMU sample at %.3f s with a non-finite value refused (%zu so far)",
+        nsToSec(input.imu.t_ns), input_.counters()[InputKind::kImu].refused);
     return;
   }
   input_.push(InputKind::kImu, std::move(input));
