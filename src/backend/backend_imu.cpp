@@ -104,7 +104,8 @@ std::unique_ptr<SplinePrior> Backend::makeGyroPrior(double u_window, double u_ne
   if (bins.empty()) return nullptr;
   auto prior = std::make_unique<GyroRatePrior>(
       spline_, first_free, bins, m.options.gyro_prior_weight,
-      m.options.gyro_noise_density_deg_s / kDegPerRad, m.bias.bias(), m.bias.sigma());
+      m.options.gyro_noise_density_deg_s / kDegPerRad, m.bias.bias(), m.bias.sigma(), 0.05,
+      m.options.gyro_model_sigma_deg_s / kDegPerRad);
   m.stats.prior_bins += prior->numBins();
   return prior;
 }
@@ -114,7 +115,19 @@ void Backend::updateGyroBias(const SplinePrior* prior, int64_t t_new_ns) {
   const auto* gyro = static_cast<const GyroRatePrior*>(prior);
   if (gyro->numBins() == 0) return;
   const double dt = m.last_bias_update_ns < 0 ? 0.0 : dtSec(t_new_ns, m.last_bias_update_ns);
-  if (!m.bias.add(gyro->measuredBias(), dt)) ++m.stats.bias_refused;
+  // The measurement's spread: in a held standstill the gyro's white noise over the held bins;
+  // moving, the model spread per bin over the bins of new time since the last update (the
+  // filter's information then covers bias_time_constant_s / gyro_bin_s bins).
+  const double bin = m.options.gyro_bin_s, nd = m.options.gyro_noise_density_deg_s / kDegPerRad,
+               model = m.options.gyro_model_sigma_deg_s / kDegPerRad;
+  const size_t held = gyro->numStandstillBins(), used = gyro->measuredBiasBins();
+  double var = 0.0;
+  if (held > 0 && used == held)
+    var = nd * nd / (double(held) * bin);
+  else
+    var = (nd * nd / bin + model * model) /
+          std::max(1.0, std::min(double(used), (dt > 0 ? dt : double(used) * bin) / bin));
+  if (!m.bias.add(gyro->measuredBias(), dt, std::sqrt(var))) ++m.stats.bias_refused;
   m.last_bias_update_ns = t_new_ns;
   ++m.stats.bias_updates;
   m.stats.yaw_bias_rad_s = m.bias.bias();

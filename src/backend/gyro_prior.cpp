@@ -7,7 +7,8 @@ namespace vwe_vo {
 
 GyroRatePrior::GyroRatePrior(std::shared_ptr<const BSpline> spline, int first_free,
                              const std::vector<Bin>& bins, double weight, double noise_density,
-                             double bias0, double bias_sigma, double min_speed_mps)
+                             double bias0, double bias_sigma, double min_speed_mps,
+                             double model_sigma)
     : spline_(std::move(spline)),
       first_free_(first_free),
       weight_(weight),
@@ -22,7 +23,8 @@ GyroRatePrior::GyroRatePrior(std::shared_ptr<const BSpline> spline, int first_fr
     };
     if (slow(b.u_start) || slow(b.u_end)) continue;
     bins_.push_back(b);
-    inv_var_.push_back(dt / (noise_density * noise_density));
+    inv_var_.push_back(1.0 / (noise_density * noise_density / dt + model_sigma * model_sigma));
+    standstill_.push_back(spline_->standstillAt(b.u_start) && spline_->standstillAt(b.u_end));
   }
 }
 
@@ -34,7 +36,24 @@ double GyroRatePrior::meanRate(const Bin& bin, PlanarPoseJacobian* ja,
   return wrapAngle(psi_b - psi_a) / (bin.u_end - bin.u_start);
 }
 
-double GyroRatePrior::measuredBias() const {
+size_t GyroRatePrior::numStandstillBins() const {
+  return size_t(std::count(standstill_.begin(), standstill_.end(), true));
+}
+
+size_t GyroRatePrior::measuredBiasBins(size_t min_standstill_bins) const {
+  const size_t held = numStandstillBins();
+  return held > 0 && held >= min_standstill_bins ? held : bins_.size();
+}
+
+double GyroRatePrior::measuredBias(size_t min_standstill_bins) const {
+  const size_t held = numStandstillBins();
+  if (held > 0 && held >= min_standstill_bins) {
+    double sum = 0.0;
+    size_t n = 0;
+    for (size_t k = 0; k < bins_.size(); ++k)
+      if (standstill_[k]) sum += bins_[k].rate, ++n;
+    return sum / double(n);
+  }
   std::vector<double> r;
   for (const Bin& b : bins_) r.push_back(b.rate - meanRate(b, nullptr, nullptr));
   if (r.empty()) return 0.0;
@@ -87,20 +106,22 @@ double GyroRatePrior::evaluate(Eigen::VectorXd* gradient) const {
   return f;
 }
 
-bool GyroBiasFilter::add(double measured_bias, double dt_s) {
-  if (!std::isfinite(measured_bias) || (n_ >= 3 && std::abs(measured_bias - bias_) > max_jump_)) {
+bool GyroBiasFilter::add(double measured_bias, double dt_s, double sigma_m) {
+  if (!std::isfinite(measured_bias) || !(sigma_m > 0) ||
+      (n_ >= 3 && std::abs(measured_bias - bias_) > max_jump_)) {
     ++refused_;
     return false;
   }
   ++n_;
-  const double gain = std::min(1.0, std::max(1.0 / double(n_), std::max(0.0, dt_s) / tau_s_));
-  bias_ += gain * (measured_bias - bias_);
+  info_ *= std::exp(-std::max(0.0, dt_s) / tau_s_);
+  const double w = 1.0 / (sigma_m * sigma_m);
+  info_ += w;
+  bias_ += w / info_ * (measured_bias - bias_);
   return true;
 }
 
 double GyroBiasFilter::sigma() const {
-  if (n_ == 0) return sigma0_;
-  return std::max(sigma_min_, sigma0_ / std::sqrt(double(n_)));
+  return std::max(sigma_min_, 1.0 / std::sqrt(info_));
 }
 
 }  // namespace vwe_vo

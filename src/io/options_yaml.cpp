@@ -219,6 +219,7 @@ void fields(Archive& a, ImuFusionOptions* o) {
   m("quaternion_xyzw", &o->T_cam_imu_quaternion_xyzw);
   m.done();
   a("gyro_noise_density_deg_s", &o->gyro_noise_density_deg_s);
+  a("gyro_model_sigma_deg_s", &o->gyro_model_sigma_deg_s);
   a("gyro_prior_weight", &o->gyro_prior_weight);
   a("gyro_bin_s", &o->gyro_bin_s);
   a("bias_time_constant_s", &o->bias_time_constant_s);

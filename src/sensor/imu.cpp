@@ -18,6 +18,8 @@ void ImuFusionOptions::validate(const std::string& section) const {
     fail("T_cam_imu.quaternion_xyzw must be a unit quaternion");
   if (!(gyro_noise_density_deg_s > 0 && gyro_noise_density_deg_s < 10))
     fail("gyro_noise_density_deg_s must be in (0, 10) deg/s/sqrt(Hz)");
+  if (!(gyro_model_sigma_deg_s >= 0 && gyro_model_sigma_deg_s <= 10))
+    fail("gyro_model_sigma_deg_s must be in [0, 10] deg/s");
   if (!(gyro_prior_weight >= 0 && std::isfinite(gyro_prior_weight)))
     fail("gyro_prior_weight must be >= 0");
   if (!(gyro_bin_s >= 0.002 && gyro_bin_s <= 1)) fail("gyro_bin_s must be in [0.002, 1] s");

@@ -251,16 +251,23 @@ TEST(Imu, GyroPriorGradientMatchesCentralFiniteDifferences) {
   }
 }
 
-TEST(Imu, GyroBiasFilterAveragesThenForgetsSlowly) {
+TEST(Imu, GyroBiasFilterWeighsByInformationThenForgetsSlowly) {
   GyroBiasFilter f(20.0, 0.5, 0.02, 1.0);
   EXPECT_DOUBLE_EQ(f.sigma(), 0.5);
-  f.add(1.0, 0.0);
-  f.add(3.0, 1.0);
-  EXPECT_DOUBLE_EQ(f.bias(), 2.0);  // running mean while 1 / n > dt / tau
-  EXPECT_TRUE(f.add(2.0, 1.0));
-  EXPECT_FALSE(f.add(5.0, 1.0));  // a jump: refused
-  EXPECT_EQ(f.refused(), 1u);
-  for (int k = 0; k < 1000; ++k) f.add(2.0 * std::exp(-0.01 * k), 1.0);
-  EXPECT_NEAR(f.bias(), 0.0, 1.7e-4);  // follows with the lag of tau (measured 1.1e-4)
-  EXPECT_DOUBLE_EQ(f.sigma(), 0.02);
+  f.add(1.0, 0.0, 0.1);
+  f.add(3.0, 0.0, 0.1);
+  // Two equal measurements against the prior at 0 (spread 0.5): their mean, pulled by 1 / 51.
+  EXPECT_NEAR(f.bias(), 2.0 * 200.0 / 204.0, 1e-12);
+  EXPECT_NEAR(f.sigma(), 1.0 / std::sqrt(204.0), 1e-12);
+  // A precise measurement (a standstill) outweighs them.
+  f.add(1.5, 0.0, 0.01);
+  EXPECT_NEAR(f.bias(), (2.0 * 200.0 / 204.0 * 204.0 + 1.5 * 1e4) / 10204.0, 1e-12);
+  EXPECT_TRUE(f.add(2.0, 1.0, 0.1));
+  EXPECT_FALSE(f.add(5.0, 1.0, 0.1));  // a jump: refused
+  EXPECT_FALSE(f.add(2.0, 1.0, 0.0));  // no spread: refused
+  EXPECT_EQ(f.refused(), 2u);
+  for (int k = 0; k < 1000; ++k) f.add(2.0 * std::exp(-0.01 * k), 1.0, 0.1);
+  EXPECT_NEAR(f.bias(), 0.0, 0.01);  // follows with the lag of tau (2 exp(-10) x 20 = 1.8e-3)
+  // The information of tau / dt measurements: 1 / (0.1^2 (1 - exp(-1 / 20))).
+  EXPECT_NEAR(f.sigma(), 0.1 * std::sqrt(1.0 - std::exp(-0.05)), 1e-9);
 }

@@ -21,6 +21,10 @@ struct ImuFusionOptions {
   // MPU-6150 product specification (PS-MPU-6150A, rev. 4.2): gyro rate noise spectral density
   // 0.005 deg/s/sqrt(Hz). Weights the gyro's yaw rate against the spline's.
   double gyro_noise_density_deg_s = 0.005;  // [deg/s/sqrt(Hz)]
+  // Added in quadrature to each bin's white noise: what the spline cannot follow within a bin and
+  // the bias's drift between filter and solve. Without it a 0.05 s bin's sigma (0.022 deg/s) makes
+  // the gyro's shape override the volumes and leaves the bias free to take any yaw-rate offset.
+  double gyro_model_sigma_deg_s = 0.1;  // [deg/s]
   double gyro_prior_weight = 1e-3;     // the gyro's yaw rate vs the normalised VWE, per bin and per
                                        // (residual / its noise)^2 (0: off) [1]
   double gyro_bin_s = 0.05;            // the gyro is compared with the spline's mean yaw rate over
@@ -28,8 +32,9 @@ struct ImuFusionOptions {
   double bias_time_constant_s = 20.0;  // slow filter of the refined windows' yaw-rate bias [s]
   double bias_sigma_deg_s = 0.5;       // prior spread of the yaw-rate bias before any estimate (the
                                        // simulated DAVIS's bound) [deg/s]
-  double bias_sigma_min_deg_s = 0.02;  // ... it shrinks as 1/sqrt(refinements) down to this
-  double bias_max_jump_deg_s = 1.0;    // a window's bias further from the estimate is refused
+  double bias_sigma_min_deg_s = 0.005;  // ... the filter's spread (1 / sqrt(information)) at least
+                                        // this: gyro_model_sigma over the bins of its time constant
+  double bias_max_jump_deg_s = 1.0;     // a window's bias further from the estimate is refused
   double attitude_time_constant_s = 1.0;        // accelerometer correction of pitch and roll [s]
   double attitude_bias_time_constant_s = 10.0;  // integral (x/y gyro bias) of that correction [s]
   double max_accel_error_mps2 = 2.0;  // compensated specific force this far from |g|: the sample
