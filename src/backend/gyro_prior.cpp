@@ -47,15 +47,11 @@ size_t GyroRatePrior::measuredBiasBins(size_t min_standstill_bins) const {
 
 double GyroRatePrior::measuredBias(size_t min_standstill_bins) const {
   const size_t held = numStandstillBins();
-  if (held > 0 && held >= min_standstill_bins) {
-    double sum = 0.0;
-    size_t n = 0;
-    for (size_t k = 0; k < bins_.size(); ++k)
-      if (standstill_[k]) sum += bins_[k].rate, ++n;
-    return sum / double(n);
-  }
   std::vector<double> r;
-  for (const Bin& b : bins_) r.push_back(b.rate - meanRate(b, nullptr, nullptr));
+  for (size_t k = 0; k < bins_.size(); ++k)
+    if (held > 0 && held >= min_standstill_bins && standstill_[k]) r.push_back(bins_[k].rate);
+  if (r.empty())
+    for (const Bin& b : bins_) r.push_back(b.rate - meanRate(b, nullptr, nullptr));
   if (r.empty()) return 0.0;
   const size_t h = r.size() / 2;
   std::nth_element(r.begin(), r.begin() + long(h), r.end());

@@ -38,9 +38,10 @@ class GyroRatePrior : public SplinePrior {
   size_t numBins() const { return bins_.size(); }
   /// The bias minimising J at the spline's current control points [rad/s].
   double bias() const;
-  /// The bias the bins measure without the prior: where the spline holds a standstill in at least
-  /// min_standstill_bins bins, the mean gyro rate there (the gyro alone measures the bias);
-  /// otherwise, robustly, the median of m_k - d_k [rad/s] (0 if none).
+  /// The bias the bins measure without the prior, robustly: where the spline holds a standstill
+  /// in at least min_standstill_bins bins, the median gyro rate there (the gyro alone measures
+  /// the bias; the held interval's ends may still turn); otherwise the median of m_k - d_k
+  /// [rad/s] (0 if none).
   double measuredBias(size_t min_standstill_bins = 4) const;
   /// The bins of measuredBias() [1].
   size_t measuredBiasBins(size_t min_standstill_bins = 4) const;
