@@ -224,6 +224,31 @@ TEST(Imu, GyroPriorRecoversABiasAndIsFlatOnTheTruth) {
   EXPECT_NEAR(tight.evaluate(nullptr), 0.18, 0.005);
 }
 
+TEST(Imu, GyroPriorModelSpreadWeighsTheBinsAgainstTheBiasPrior) {
+  auto spline = curvedSpline();
+  const double b = 0.3 * kPi / 180, nd = 0.005 * kPi / 180, model = 0.1 * kPi / 180;
+  const double sigma_b = 0.005 * kPi / 180;
+  const auto bins = gyroBins(*spline, b);
+  const GyroRatePrior white(spline, 4, bins, 1e-3, nd, 0.0, sigma_b);
+  const GyroRatePrior floored(spline, 4, bins, 1e-3, nd, 0.0, sigma_b, 0.05, model);
+  const double k = double(white.numBins());
+  ASSERT_EQ(floored.numBins(), white.numBins());
+  // The closed-form bias: the bins' information k / sigma_k^2 against the prior's 1 / sigma_b^2.
+  auto expected = [&](double var_k) {
+    return b * (k / var_k) / (k / var_k + 1.0 / (sigma_b * sigma_b));
+  };
+  EXPECT_NEAR(white.bias(), expected(nd * nd / 0.05), 1e-6 * b);
+  EXPECT_NEAR(floored.bias(), expected(nd * nd / 0.05 + model * model), 1e-6 * b);
+  // White noise alone the bins outweigh a tight prior (0.73 b); with the model spread the prior
+  // holds the bias (0.11 b).
+  EXPECT_GT(white.bias(), 0.65 * b);
+  EXPECT_LT(floored.bias(), 0.17 * b);
+  // No held standstill in this spline: the measured bias is the gyro against the spline.
+  EXPECT_EQ(floored.numStandstillBins(), 0u);
+  EXPECT_EQ(floored.measuredBiasBins(), floored.numBins());
+  EXPECT_NEAR(floored.measuredBias(), b, 1e-9);
+}
+
 TEST(Imu, GyroPriorGradientMatchesCentralFiniteDifferences) {
   auto spline = curvedSpline();
   const int first_free = 4;
