@@ -78,7 +78,7 @@ test-sanitize: deps
 # .build/fuzz/artifacts. The generated message headers come from the catkin workspace.
 FUZZ_SECONDS ?= 60
 FUZZ_DIR ?= $(ROOT)/.build/fuzz
-FUZZ_TARGETS ?= ecd_events ecd_calib tum arcs_csv config_yaml camera_yaml conversions
+FUZZ_TARGETS ?= ecd_events ecd_calib ecd_imu tum arcs_csv config_yaml camera_yaml conversions
 fuzz: deps $(WS)/src/vwe_vo
 	@$(ENV) && cd $(WS) && catkin_make vwe_vo_generate_messages_cpp > $(WS)/fuzz_messages.log 2>&1 \
 	  || { tail -n 30 $(WS)/fuzz_messages.log; echo "[fuzz] message generation FAILED"; exit 1; }
