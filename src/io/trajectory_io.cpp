@@ -130,54 +130,42 @@ bool isDigit(char c) {
 
 /// The common event line `S[.F] X Y P` (S, F, X, Y decimal digits, P 0 or 1) parsed by hand:
 /// the time exactly to nanoseconds (digits beyond the ninth round half up). False on anything
-/// else, which the general parser then reads (or reports) as before.
+/// else, which the general parser then reads (or reports) as before. The line must be
+/// NUL-terminated right after its end: no digit or blank is read past it.
 bool parseEventFast(std::string_view line, PixelEvent* e) {
   const char* p = line.data();
-  const char* const end = p + line.size();
-  if (p == end || !isDigit(*p)) return false;
+  if (!isDigit(*p)) return false;
   int64_t sec = 0;
-  int int_digits = 0;
-  while (p < end && isDigit(*p)) {
-    sec = sec * 10 + (*p++ - '0');
-    if (++int_digits > 10) return false;
-  }
-  if (sec > 9000000000LL) return false;
+  const char* const sec_begin = p;
+  while (isDigit(*p) && p - sec_begin < 11) sec = sec * 10 + (*p++ - '0');
+  if (p - sec_begin > 10 || sec > 9000000000LL) return false;
   int64_t frac = 0;
-  if (p < end && *p == '.') {
+  if (*p == '.') {
     ++p;
-    int digits = 0;
-    bool round_up = false;
-    while (p < end && isDigit(*p)) {
-      if (digits < 9) {
-        frac = frac * 10 + (*p - '0');
-      } else if (digits == 9) {
-        round_up = *p >= '5';
-      }
-      ++digits;
-      ++p;
-    }
+    const char* const frac_begin = p;
+    while (isDigit(*p) && p - frac_begin < 9) frac = frac * 10 + (*p++ - '0');
     static constexpr int64_t kScale[10] = {1000000000, 100000000, 10000000, 1000000, 100000,
                                            10000,      1000,      100,      10,      1};
-    frac = frac * kScale[digits < 9 ? digits : 9] + (round_up ? 1 : 0);
+    frac *= kScale[p - frac_begin];
+    if (isDigit(*p)) {
+      frac += *p >= '5' ? 1 : 0;
+      while (isDigit(*p)) ++p;
+    }
   }
-  if (p == end || (*p != ' ' && *p != '\t')) return false;
+  if (*p != ' ' && *p != '\t') return false;
   unsigned xy[2];
   for (unsigned& v : xy) {
-    while (p < end && (*p == ' ' || *p == '\t')) ++p;
-    if (p == end || !isDigit(*p)) return false;
+    while (*p == ' ' || *p == '\t') ++p;
+    const char* const begin = p;
     v = 0;
-    int digits = 0;
-    while (p < end && isDigit(*p)) {
-      v = v * 10 + unsigned(*p++ - '0');
-      if (++digits > 5) return false;
-    }
-    if (v > 65535 || p == end || (*p != ' ' && *p != '\t')) return false;
+    while (isDigit(*p) && p - begin < 6) v = v * 10 + unsigned(*p++ - '0');
+    if (p == begin || v > 65535 || (*p != ' ' && *p != '\t')) return false;
   }
-  while (p < end && (*p == ' ' || *p == '\t')) ++p;
-  if (p == end || (*p != '0' && *p != '1')) return false;
+  while (*p == ' ' || *p == '\t') ++p;
+  if (*p != '0' && *p != '1') return false;
   const char pol = *p++;
-  while (p < end && isSpace(*p)) ++p;
-  if (p != end) return false;
+  while (isSpace(*p)) ++p;
+  if (p != line.data() + line.size()) return false;
   e->t_ns = sec * kNsPerSec + frac;
   e->x = static_cast<uint16_t>(xy[0]);
   e->y = static_cast<uint16_t>(xy[1]);
