@@ -19,12 +19,14 @@ namespace {
 
 /// Reads text lines from a plain or gzip-compressed file (zlib reads both) in large blocks; a
 /// line is a view into the block buffer, valid until the next call, and NUL-terminated in place.
+/// Blocks grow from 64 KiB to 4 MiB; a line longer than that grows the buffer.
 class LineReader {
  public:
   static constexpr size_t kBlockBytes = size_t(1) << 22;
+  static constexpr size_t kFirstBlockBytes = size_t(1) << 16;  // small files stay cheap
 
   explicit LineReader(const std::string& path)
-      : path_(path), file_(gzopen(path.c_str(), "rb")), buf_(kBlockBytes + 1) {
+      : path_(path), file_(gzopen(path.c_str(), "rb")), buf_(kFirstBlockBytes + 1) {
     if (!file_) throw std::runtime_error("cannot open " + path + ": " + std::strerror(errno));
     gzbuffer(file_, 1 << 18);
   }
@@ -70,7 +72,8 @@ class LineReader {
     if (pos_ > 0 && tail > 0) std::memmove(buf_.data(), buf_.data() + pos_, tail);
     pos_ = 0;
     end_ = tail;
-    if (buf_.size() - 1 - end_ < kBlockBytes / 2) buf_.resize(buf_.size() + kBlockBytes);
+    if (buf_.size() - 1 - end_ < block_) buf_.resize(end_ + block_ + 1);
+    block_ = std::min(2 * block_, kBlockBytes);  // blocks double up to kBlockBytes
     const size_t room = buf_.size() - 1 - end_;
     const int n = gzread(file_, buf_.data() + end_, static_cast<unsigned>(room));
     if (n < 0) {
@@ -86,6 +89,7 @@ class LineReader {
   std::string path_;
   gzFile file_;
   std::vector<char> buf_;
+  size_t block_ = kFirstBlockBytes;
   size_t pos_ = 0, end_ = 0;
   bool eof_ = false;
   int line_number_ = 0;
