@@ -2,6 +2,7 @@
 
 #include <zlib.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <climits>
 #include <cmath>
@@ -11,32 +12,52 @@
 #include <memory>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 
 namespace vwe_vo {
 namespace {
 
-/// Reads text lines from a plain or gzip-compressed file (zlib reads both).
+/// Reads text lines from a plain or gzip-compressed file (zlib reads both) in large blocks; a
+/// line is a view into the block buffer, valid until the next call, and NUL-terminated in place.
+/// Blocks grow from 64 KiB to 4 MiB; a line longer than that grows the buffer.
 class LineReader {
  public:
-  explicit LineReader(const std::string& path) : path_(path), file_(gzopen(path.c_str(), "rb")) {
+  static constexpr size_t kBlockBytes = size_t(1) << 22;
+  static constexpr size_t kFirstBlockBytes = size_t(1) << 16;  // small files stay cheap
+
+  explicit LineReader(const std::string& path)
+      : path_(path), file_(gzopen(path.c_str(), "rb")), buf_(kFirstBlockBytes + 1) {
     if (!file_) throw std::runtime_error("cannot open " + path + ": " + std::strerror(errno));
-    gzbuffer(file_, 1 << 20);
+    gzbuffer(file_, 1 << 18);
   }
   ~LineReader() { gzclose(file_); }
   LineReader(const LineReader&) = delete;
   LineReader& operator=(const LineReader&) = delete;
 
   /// Next line without its end-of-line; false at the end of the file.
-  bool next(std::string* line) {
-    line->clear();
-    char buf[4096];
-    while (gzgets(file_, buf, sizeof(buf))) {
-      line->append(buf);
-      if (!line->empty() && line->back() == '\n') break;
+  bool next(std::string_view* line) {
+    const char* nl = nullptr;
+    while (true) {
+      const size_t avail = end_ - pos_;
+      nl = avail > 0 ? static_cast<const char*>(std::memchr(buf_.data() + pos_, '\n', avail))
+                     : nullptr;
+      if (nl || eof_) break;
+      refill();
     }
-    if (line->empty()) return false;
+    char* begin = buf_.data() + pos_;
+    char* stop;
+    if (nl) {
+      stop = const_cast<char*>(nl);
+      pos_ = (nl - buf_.data()) + 1;
+    } else {
+      if (pos_ == end_) return false;
+      stop = buf_.data() + end_;  // the last line without a final newline
+      pos_ = end_;
+    }
+    while (stop > begin && (stop[-1] == '\n' || stop[-1] == '\r')) --stop;
+    *stop = '\0';  // the buffer holds one byte more than a block: always writable
+    *line = std::string_view(begin, stop - begin);
     ++line_number_;
-    while (!line->empty() && (line->back() == '\n' || line->back() == '\r')) line->pop_back();
     return true;
   }
   int lineNumber() const { return line_number_; }
@@ -45,35 +66,115 @@ class LineReader {
   }
 
  private:
+  /// Moves the unfinished line to the front and reads the next block behind it.
+  void refill() {
+    const size_t tail = end_ - pos_;
+    if (pos_ > 0 && tail > 0) std::memmove(buf_.data(), buf_.data() + pos_, tail);
+    pos_ = 0;
+    end_ = tail;
+    if (buf_.size() - 1 - end_ < block_) buf_.resize(end_ + block_ + 1);
+    block_ = std::min(2 * block_, kBlockBytes);  // blocks double up to kBlockBytes
+    const size_t room = buf_.size() - 1 - end_;
+    const int n = gzread(file_, buf_.data() + end_, static_cast<unsigned>(room));
+    if (n < 0) {
+      int code = 0;
+      const char* msg = gzerror(file_, &code);
+      throw std::runtime_error("cannot read " + path_ + ": " +
+                               (code == Z_ERRNO ? std::strerror(errno) : msg));
+    }
+    if (n == 0) eof_ = true;
+    end_ += static_cast<size_t>(n);
+  }
+
   std::string path_;
   gzFile file_;
+  std::vector<char> buf_;
+  size_t block_ = kFirstBlockBytes;
+  size_t pos_ = 0, end_ = 0;
+  bool eof_ = false;
   int line_number_ = 0;
 };
 
-bool isBlankOrComment(const std::string& line) {
+bool isSpace(char c) {
+  return std::isspace(static_cast<unsigned char>(c)) != 0;
+}
+
+bool isBlankOrComment(std::string_view line) {
   for (char c : line) {
     if (c == '#') return true;
-    if (!std::isspace(static_cast<unsigned char>(c))) return false;
+    if (!isSpace(c)) return false;
   }
   return true;
 }
 
-/// Parses exactly n finite numbers separated by white space; false otherwise.
-bool parseNumbers(const std::string& line, int n_min, int n_max, std::vector<double>* out) {
+/// Parses n_min..n_max finite numbers separated by white space; false otherwise. The line must
+/// be NUL-terminated right after its end (LineReader does so).
+bool parseNumbers(std::string_view line, int n_min, int n_max, std::vector<double>* out) {
   out->clear();
-  const char* p = line.c_str();
+  const char* p = line.data();
+  const char* const line_end = p + line.size();
   char* end = nullptr;
   while (true) {
-    while (*p && std::isspace(static_cast<unsigned char>(*p))) ++p;
-    if (!*p) break;
+    while (p < line_end && isSpace(*p)) ++p;
+    if (p >= line_end) break;
     errno = 0;
     const double v = std::strtod(p, &end);
     if (end == p || errno == ERANGE || !std::isfinite(v)) return false;
-    if (*end && !std::isspace(static_cast<unsigned char>(*end))) return false;
+    if (end < line_end && !isSpace(*end)) return false;
+    if (end > line_end) return false;
     out->push_back(v);
     p = end;
   }
   return static_cast<int>(out->size()) >= n_min && static_cast<int>(out->size()) <= n_max;
+}
+
+bool isDigit(char c) {
+  return static_cast<unsigned>(c - '0') < 10u;
+}
+
+/// The common event line `S[.F] X Y P` (S, F, X, Y decimal digits, P 0 or 1) parsed by hand:
+/// the time exactly to nanoseconds (digits beyond the ninth round half up). False on anything
+/// else, which the general parser then reads (or reports) as before. The line must be
+/// NUL-terminated right after its end: no digit or blank is read past it.
+bool parseEventFast(std::string_view line, PixelEvent* e) {
+  const char* p = line.data();
+  if (!isDigit(*p)) return false;
+  int64_t sec = 0;
+  const char* const sec_begin = p;
+  while (isDigit(*p) && p - sec_begin < 11) sec = sec * 10 + (*p++ - '0');
+  if (p - sec_begin > 10 || sec > 9000000000LL) return false;
+  int64_t frac = 0;
+  if (*p == '.') {
+    ++p;
+    const char* const frac_begin = p;
+    while (isDigit(*p) && p - frac_begin < 9) frac = frac * 10 + (*p++ - '0');
+    static constexpr int64_t kScale[10] = {1000000000, 100000000, 10000000, 1000000, 100000,
+                                           10000,      1000,      100,      10,      1};
+    frac *= kScale[p - frac_begin];
+    if (isDigit(*p)) {
+      frac += *p >= '5' ? 1 : 0;
+      while (isDigit(*p)) ++p;
+    }
+  }
+  if (*p != ' ' && *p != '\t') return false;
+  unsigned xy[2];
+  for (unsigned& v : xy) {
+    while (*p == ' ' || *p == '\t') ++p;
+    const char* const begin = p;
+    v = 0;
+    while (isDigit(*p) && p - begin < 6) v = v * 10 + unsigned(*p++ - '0');
+    if (p == begin || v > 65535 || (*p != ' ' && *p != '\t')) return false;
+  }
+  while (*p == ' ' || *p == '\t') ++p;
+  if (*p != '0' && *p != '1') return false;
+  const char pol = *p++;
+  while (isSpace(*p)) ++p;
+  if (p != line.data() + line.size()) return false;
+  e->t_ns = sec * kNsPerSec + frac;
+  e->x = static_cast<uint16_t>(xy[0]);
+  e->y = static_cast<uint16_t>(xy[1]);
+  e->polarity = pol == '1' ? 1 : -1;
+  return true;
 }
 
 std::unique_ptr<FILE, int (*)(FILE*)> openForWriting(const std::string& path) {
@@ -100,12 +201,12 @@ std::string poseToTumNumbers(const Pose3& T) {
 Trajectory3 readTum(const std::string& path) {
   LineReader in(path);
   Trajectory3 traj;
-  std::string line;
+  std::string_view line;
   std::vector<double> v;
   while (in.next(&line)) {
     if (isBlankOrComment(line)) continue;
     if (!parseNumbers(line, 8, 8, &v))
-      in.fail("expected 8 numbers 't px py pz qx qy qz qw', got '" + line + "'");
+      in.fail("expected 8 numbers 't px py pz qx qy qz qw', got '" + std::string(line) + "'");
     const double qn = std::sqrt(v[4] * v[4] + v[5] * v[5] + v[6] * v[6] + v[7] * v[7]);
     if (std::abs(qn - 1.0) > 1e-3)
       in.fail("quaternion is not unit length (norm " + std::to_string(qn) + ")");
@@ -131,7 +232,7 @@ struct EcdEventReader::Impl {
   LineReader in;
   int width, height;
   int64_t last_t_ns = INT64_MIN;
-  std::string line;
+  std::string_view line;
   std::vector<double> v;
 };
 
@@ -141,23 +242,36 @@ EcdEventReader::~EcdEventReader() = default;
 
 size_t EcdEventReader::read(size_t max_events, EventVector* out) {
   out->clear();
+  out->reserve(std::min(max_events, size_t(1) << 20));
   Impl& r = *impl_;
   while (out->size() < max_events && r.in.next(&r.line)) {
-    const std::string& line = r.line;
+    const std::string_view line = r.line;
     std::vector<double>& v = r.v;
+    PixelEvent e;
+    if (parseEventFast(line, &e)) {
+      if ((r.width > 0 && e.x >= r.width) || (r.height > 0 && e.y >= r.height))
+        r.in.fail("event at (" + std::to_string(e.x) + ", " + std::to_string(e.y) +
+                  ") is outside the " + std::to_string(r.width) + "x" + std::to_string(r.height) +
+                  " sensor");
+      if (e.t_ns < r.last_t_ns)
+        r.in.fail("time goes backwards at " + std::to_string(std::strtod(line.data(), nullptr)) +
+                  " s");
+      r.last_t_ns = e.t_ns;
+      out->push_back(e);
+      continue;
+    }
     if (isBlankOrComment(line)) continue;
     if (!parseNumbers(line, 4, 4, &v))
-      r.in.fail("expected 4 numbers 't x y p', got '" + line + "'");
+      r.in.fail("expected 4 numbers 't x y p', got '" + std::string(line) + "'");
     if (v[1] < 0 || v[2] < 0 || v[1] != std::floor(v[1]) || v[2] != std::floor(v[2]) ||
         v[1] > 65535 || v[2] > 65535)
-      r.in.fail("pixel coordinates must be non-negative integers, got '" + line + "'");
+      r.in.fail("pixel coordinates must be non-negative integers, got '" + std::string(line) + "'");
     if ((r.width > 0 && v[1] >= r.width) || (r.height > 0 && v[2] >= r.height))
       r.in.fail("event at (" + std::to_string(int(v[1])) + ", " + std::to_string(int(v[2])) +
                 ") is outside the " + std::to_string(r.width) + "x" + std::to_string(r.height) +
                 " sensor");
     if (v[3] != 0 && v[3] != 1 && v[3] != -1)
-      r.in.fail("polarity must be 0 or 1, got '" + line + "'");
-    PixelEvent e;
+      r.in.fail("polarity must be 0 or 1, got '" + std::string(line) + "'");
     e.t_ns = secToNs(v[0]);
     e.x = static_cast<uint16_t>(v[1]);
     e.y = static_cast<uint16_t>(v[2]);
@@ -176,20 +290,43 @@ EventVector readEcdEvents(const std::string& path, int width, int height) {
   return all;
 }
 
-EcdEventWriter::EcdEventWriter(const std::string& path)
-    : path_(path), file_(std::fopen(path.c_str(), "w")) {
-  if (!file_) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
+EcdEventWriter::EcdEventWriter(const std::string& path) : path_(path) {
+  const bool gz = path.size() > 3 && path.compare(path.size() - 3, 3, ".gz") == 0;
+  if (gz)
+    gz_ = gzopen(path.c_str(), "wb");
+  else
+    file_ = std::fopen(path.c_str(), "w");
+  if (!file_ && !gz_)
+    throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
 }
 
 EcdEventWriter::~EcdEventWriter() {
-  std::fclose(file_);
+  if (gz_) gzclose(gz_);
+  if (file_) std::fclose(file_);
 }
 
 void EcdEventWriter::write(const EventVector& events) {
-  for (const PixelEvent& e : events)
-    if (std::fprintf(file_, "%.9f %u %u %d\n", nsToSec(e.t_ns), e.x, e.y, e.polarity > 0 ? 1 : 0) <
-        0)
-      throw std::runtime_error("cannot write " + path_ + ": " + std::strerror(errno));
+  std::string text;
+  text.reserve(std::min<size_t>(events.size(), 1 << 16) * 32);
+  const auto flush = [&] {
+    const bool ok = gz_ ? gzwrite(gz_, text.data(), static_cast<unsigned>(text.size())) ==
+                              static_cast<int>(text.size())
+                        : std::fwrite(text.data(), 1, text.size(), file_) == text.size();
+    if (!ok) throw std::runtime_error("cannot write " + path_ + ": " + std::strerror(errno));
+    text.clear();
+  };
+  char line[64];
+  for (const PixelEvent& e : events) {
+    // The time exactly, as seconds with nine decimals.
+    const unsigned long long abs_ns =
+        e.t_ns < 0 ? 0ULL - static_cast<unsigned long long>(e.t_ns) : e.t_ns;
+    const int n = std::snprintf(line, sizeof(line), "%s%llu.%09llu %u %u %d\n",
+                                e.t_ns < 0 ? "-" : "", abs_ns / 1000000000ULL,
+                                abs_ns % 1000000000ULL, e.x, e.y, e.polarity > 0 ? 1 : 0);
+    text.append(line, static_cast<size_t>(n));
+    if (text.size() > (size_t(1) << 20)) flush();
+  }
+  if (!text.empty()) flush();
 }
 
 void writeEcdEvents(const std::string& path, const EventVector& events) {
@@ -198,12 +335,12 @@ void writeEcdEvents(const std::string& path, const EventVector& events) {
 
 EcdCalibration readEcdCalibration(const std::string& path) {
   LineReader in(path);
-  std::string line;
+  std::string_view line;
   std::vector<double> v;
   while (in.next(&line)) {
     if (isBlankOrComment(line)) continue;
     if (!parseNumbers(line, 4, 9, &v))
-      in.fail("expected 'fx fy cx cy [k1 k2 p1 p2 k3]', got '" + line + "'");
+      in.fail("expected 'fx fy cx cy [k1 k2 p1 p2 k3]', got '" + std::string(line) + "'");
     v.resize(9, 0.0);
     EcdCalibration c{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]};
     if (c.fx <= 0 || c.fy <= 0) in.fail("focal lengths must be positive");
@@ -221,12 +358,12 @@ void writeEcdCalibration(const std::string& path, const EcdCalibration& c) {
 std::vector<ImuSample> readEcdImu(const std::string& path) {
   LineReader in(path);
   std::vector<ImuSample> out;
-  std::string line;
+  std::string_view line;
   std::vector<double> v;
   while (in.next(&line)) {
     if (isBlankOrComment(line)) continue;
     if (!parseNumbers(line, 7, 7, &v))
-      in.fail("expected 7 numbers 't ax ay az gx gy gz', got '" + line + "'");
+      in.fail("expected 7 numbers 't ax ay az gx gy gz', got '" + std::string(line) + "'");
     // Times are int64 nanoseconds: a stamp beyond +-9.2e9 s cannot be held.
     if (!(std::abs(v[0]) < 9.2e9))
       in.fail("time " + std::to_string(v[0]) + " s is outside the representable range");
@@ -263,12 +400,12 @@ void writeEcdImu(const std::string& path, const std::vector<ImuSample>& samples)
 
 Pose3 readPoseLine(const std::string& path) {
   LineReader in(path);
-  std::string line;
+  std::string_view line;
   std::vector<double> v;
   while (in.next(&line)) {
     if (isBlankOrComment(line)) continue;
     if (!parseNumbers(line, 7, 7, &v))
-      in.fail("expected 'px py pz qx qy qz qw', got '" + line + "'");
+      in.fail("expected 'px py pz qx qy qz qw', got '" + std::string(line) + "'");
     const double qn = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
     if (std::abs(qn - 1.0) > 1e-3) in.fail("quaternion is not unit length");
     return poseFromTumNumbers(v.data());

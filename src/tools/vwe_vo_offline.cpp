@@ -230,6 +230,19 @@ class Progress {
   std::chrono::steady_clock::time_point last_;
 };
 
+/// Adds the wall time of f() to *total_s and returns what f returns.
+template <typename F>
+auto timed(double* total_s, F&& f) {
+  struct Add {
+    double* total_s;
+    std::chrono::steady_clock::time_point t0 = std::chrono::steady_clock::now();
+    ~Add() {
+      *total_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    }
+  } add{total_s};
+  return f();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -321,6 +334,7 @@ int main(int argc, char** argv) {
       cfg.baseline.nominal_speed_mps = cfg.frontend.nominal_speed_mps;
     }
     const auto wall0 = std::chrono::steady_clock::now();
+    double read_s = 0;  // reading and decoding the input (report.json input.read_s)
     Progress progress(quiet);
     nlohmann::json input;
     std::string ecd_events;
@@ -358,14 +372,17 @@ int main(int argc, char** argv) {
         vwe_vo::EcdEventReader reader(ecd_events, cfg.camera.width, cfg.camera.height);
         vwe_vo::EventVector chunk;
         std::vector<vwe_vo::ImuSample> imu;
+        const auto readChunk = [&] {
+          return timed(&read_s, [&] { return reader.read(50000, &chunk); });
+        };
         if (use_imu) {
           const std::string imu_path = args["--ecd"] + "/imu.txt";
           if (!vwe_vo::fileExists(imu_path)) throw std::runtime_error("--use-imu: no " + imu_path);
-          imu = vwe_vo::readEcdImu(imu_path);
+          imu = timed(&read_s, [&] { return vwe_vo::readEcdImu(imu_path); });
           input["imu_samples"] = imu.size();
         }
         size_t next_imu = 0;
-        while (reader.read(50000, &chunk) > 0) {
+        while (readChunk() > 0) {
           // The IMU in time order with the events: the samples up to the chunk's newest event.
           for (; next_imu < imu.size() && imu[next_imu].t_ns <= chunk.back().t_ns; ++next_imu) {
             const vwe_vo::ImuSample& s = imu[next_imu];
@@ -388,6 +405,7 @@ int main(int argc, char** argv) {
       const std::string image_topic =
           args.count("--image-topic") ? args["--image-topic"] : "/dvs/image_raw";
       bag_file = std::make_unique<BagFile>(args["--bag"]);
+      const auto read0 = std::chrono::steady_clock::now();
       rosbag::Bag bag(bag_file->path(), rosbag::bagmode::Read);
       std::vector<std::string> topics = {odom_topic, imu_topic};
       if (!baseline_only) topics.push_back(events_topic);
@@ -399,32 +417,36 @@ int main(int argc, char** argv) {
       size_t packets = 0;
       vwe_vo::EventVector events;
       vwe_vo::EventConversionStats conv;
-      for (const rosbag::MessageInstance& m : view) {
+      read_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - read0).count();
+      for (auto it = timed(&read_s, [&] { return view.begin(); }); it != view.end();
+           timed(&read_s, [&] { ++it; })) {
+        const rosbag::MessageInstance& m = *it;
         if (baseline && m.getTopic() == image_topic) {
-          if (const auto img = m.instantiate<sensor_msgs::Image>()) {
+          if (const auto img =
+                  timed(&read_s, [&] { return m.instantiate<sensor_msgs::Image>(); })) {
             pipeline.addFrame(vwe_vo::toNs(img->header.stamp), vwe_vo::imageFromMsg(*img));
             ++frames;
           }
         } else if (!baseline_only && m.getTopic() == events_topic) {
-          const auto msg = m.instantiate<vwe_vo::EventArray>();
+          const auto msg = timed(&read_s, [&] { return m.instantiate<vwe_vo::EventArray>(); });
           if (!msg) continue;
           if (int(msg->width) != cfg.camera.width || int(msg->height) != cfg.camera.height)
             throw std::runtime_error("EventArray is " + std::to_string(msg->width) + "x" +
                                      std::to_string(msg->height) + " but the calibration is " +
                                      std::to_string(cfg.camera.width) + "x" +
                                      std::to_string(cfg.camera.height));
-          vwe_vo::eventsFromMsg(*msg, &events, &conv);
+          timed(&read_s, [&] { vwe_vo::eventsFromMsg(*msg, &events, &conv); });
           pipeline.addEvents(events);
           printInputWarning(&pipeline);
           ++packets;
           progress.update(pipeline, total);
         } else if (use_odom && m.getTopic() == odom_topic) {
-          if (const auto o = m.instantiate<nav_msgs::Odometry>()) {
+          if (const auto o = timed(&read_s, [&] { return m.instantiate<nav_msgs::Odometry>(); })) {
             const vwe_vo::OdometrySample s = vwe_vo::odometryFromMsg(*o);
             pipeline.addOdometry(s.t_ns, s.v_mps, s.yaw_rate_rad_s);
           }
         } else if (m.getTopic() == imu_topic) {
-          if (const auto imu = m.instantiate<sensor_msgs::Imu>()) {
+          if (const auto imu = timed(&read_s, [&] { return m.instantiate<sensor_msgs::Imu>(); })) {
             const vwe_vo::GyroSample g = vwe_vo::gyroFromMsg(*imu, T_base_imu);
             pipeline.addGyro(g.t_ns, g.yaw_rate_rad_s);
             if (use_imu) pipeline.addImu(vwe_vo::imuFromMsg(*imu));
@@ -468,26 +490,35 @@ int main(int argc, char** argv) {
       vwe_vo::EventVector chunk;
       if (args.count("--ecd")) {
         vwe_vo::EcdEventReader reader(ecd_events, cfg.camera.width, cfg.camera.height);
-        while (reader.read(200000, &chunk) > 0) pipeline.addMappingEvents(chunk);
+        while (timed(&read_s, [&] { return reader.read(200000, &chunk); }) > 0)
+          pipeline.addMappingEvents(chunk);
       } else {
         const std::string events_topic =
             args.count("--events-topic") ? args["--events-topic"] : "/dvs/events";
+        const auto read0 = std::chrono::steady_clock::now();
         rosbag::Bag bag(bag_file->path(), rosbag::bagmode::Read);
         const ros::Time begin =
             rosbag::View(bag, rosbag::TopicQuery({events_topic})).getBeginTime() +
             ros::Duration(start_s);
         rosbag::View view(bag, rosbag::TopicQuery({events_topic}), begin);
         vwe_vo::EventConversionStats conv;
-        for (const rosbag::MessageInstance& m : view)
-          if (const auto msg = m.instantiate<vwe_vo::EventArray>()) {
-            vwe_vo::eventsFromMsg(*msg, &chunk, &conv);
-            pipeline.addMappingEvents(chunk);
-          }
+        read_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - read0).count();
+        for (auto it = timed(&read_s, [&] { return view.begin(); }); it != view.end();
+             timed(&read_s, [&] { ++it; })) {
+          const rosbag::MessageInstance& m = *it;
+          const bool got = timed(&read_s, [&] {
+            const auto msg = m.instantiate<vwe_vo::EventArray>();
+            if (msg) vwe_vo::eventsFromMsg(*msg, &chunk, &conv);
+            return msg != nullptr;
+          });
+          if (got) pipeline.addMappingEvents(chunk);
+        }
       }
       pipeline.finishMapping();
     }
     const double wall =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+    input["read_s"] = read_s;
     pipeline.writeOutputs(args["--out"], {{"input", input}, {"wall_s", wall}});
     {
       const std::string options_path = args["--out"] + "/options.yaml";

@@ -12,6 +12,8 @@
 #include "vwe_vo/sensor/events.h"
 #include "vwe_vo/trajectory/stamped_trajectory.h"
 
+struct gzFile_s;  // zlib's stream
+
 namespace vwe_vo {
 
 /// Reads a TUM file. Throws on malformed lines, non-finite values, non-increasing time and on a
@@ -35,6 +37,7 @@ class EcdEventReader {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+/// Writes events.txt; a path ending in ".gz" is written gzip-compressed.
 void writeEcdEvents(const std::string& path, const EventVector& events);
 /// The same, streamed: events are appended chunk by chunk (memory does not grow).
 class EcdEventWriter {
@@ -47,7 +50,8 @@ class EcdEventWriter {
 
  private:
   std::string path_;
-  FILE* file_;
+  FILE* file_ = nullptr;
+  gzFile_s* gz_ = nullptr;
 };
 
 /// calib.txt: `fx fy cx cy k1 k2 p1 p2 k3` (the last five optional, default 0).
