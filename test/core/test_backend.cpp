@@ -11,6 +11,7 @@
 #include <string>
 #include <tuple>
 
+#include "../common/prior_gradient_check.h"
 #include "../common/synthetic_events.h"
 #include "../common/test_camera.h"
 #include "vwe_vo/backend/backend.h"
@@ -323,32 +324,6 @@ TEST(Backend, PlanarJacobianGivesTheGradientOfTheFullPoseJacobian) {
   EXPECT_THROW(model.addPlanarGradient({kEpoch}, {}, &g), std::invalid_argument);
 }
 
-/// Moves the free control points of `spline` by up to `move_m`, then checks the prior's analytic
-/// gradient against central differences (tolerance relative to the gradient's norm).
-static void expectGradientMatchesCentralDifferences(BSpline* spline, int first_free,
-                                                    const SplinePrior& prior, double move_m,
-                                                    double rel_tol) {
-  for (int i = first_free; i < spline->numControlPoints(); ++i)
-    spline->setControlPoint(
-        i, spline->controlPoints()[i] + move_m * Vec2(std::cos(2.0 * i), std::sin(7.0 * i)));
-  Eigen::VectorXd g;
-  ASSERT_GT(prior.evaluate(&g), 0.0);
-  ASSERT_EQ(g.size(), 2 * (spline->numControlPoints() - first_free));
-  const double h = 1e-6;
-  for (int k = 0; k < g.size(); ++k) {
-    const int i = first_free + k / 2;
-    const Vec2 P = spline->controlPoints()[i];
-    Vec2 d = Vec2::Zero();
-    d(k % 2) = h;
-    spline->setControlPoint(i, P + d);
-    const double fp = prior.evaluate(nullptr);
-    spline->setControlPoint(i, P - d);
-    const double fm = prior.evaluate(nullptr);
-    spline->setControlPoint(i, P);
-    EXPECT_NEAR(g[k], (fp - fm) / (2 * h), rel_tol * g.norm()) << "param " << k;
-  }
-}
-
 TEST(Backend, SpeedPriorGradientMatchesCentralFiniteDifferences) {
   auto spline = std::make_shared<BSpline>(*truthSpline());
   const int first_free = 4;
@@ -359,7 +334,7 @@ TEST(Backend, SpeedPriorGradientMatchesCentralFiniteDifferences) {
   Eigen::VectorXd g;
   EXPECT_NEAR(prior.evaluate(&g), 0.0, 1e-20);  // targets are the current speeds
   // Move the free control points away from the targets, then compare.
-  expectGradientMatchesCentralDifferences(spline.get(), first_free, prior, 0.03, 1e-6);
+  test::expectPriorGradientMatchesCentralDifferences(spline.get(), first_free, prior, 0.03, 1e-6);
 }
 
 TEST(Backend, SpeedPriorScaleTermLeavesTheSpeedShapeFreeAndItsGradientMatches) {
@@ -378,7 +353,7 @@ TEST(Backend, SpeedPriorScaleTermLeavesTheSpeedShapeFreeAndItsGradientMatches) {
     spline->setControlPoint(i, 1.1 * P0[size_t(i)]);
   EXPECT_NEAR(all_free.evaluate(nullptr), 3.0 * 0.1 * 0.1, 1e-9);
   for (int i = 0; i < spline->numControlPoints(); ++i) spline->setControlPoint(i, P0[size_t(i)]);
-  expectGradientMatchesCentralDifferences(spline.get(), first_free, prior, 0.03, 1e-6);
+  test::expectPriorGradientMatchesCentralDifferences(spline.get(), first_free, prior, 0.03, 1e-6);
 }
 
 TEST(Backend, ArcRatePriorIsZeroOnItsOwnArcsAndItsGradientMatchesFiniteDifferences) {
@@ -403,7 +378,7 @@ TEST(Backend, ArcRatePriorIsZeroOnItsOwnArcsAndItsGradientMatchesFiniteDifferenc
   const ArcRatePrior prior(spline, first_free, biased, 1e-2);
   EXPECT_NEAR(prior.evaluate(nullptr), 1e-2 / double(prior.numArcs()) * 2.0 * 2.0, 1e-9);
   // Moved control points: analytic gradient against central differences.
-  expectGradientMatchesCentralDifferences(spline.get(), first_free, prior, 0.01, 1e-5);
+  test::expectPriorGradientMatchesCentralDifferences(spline.get(), first_free, prior, 0.01, 1e-5);
 }
 
 TEST(Backend, DeformationPriorGradientMatchesCentralFiniteDifferencesAndSparesQuadraticMoves) {

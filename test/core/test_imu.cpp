@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <random>
 
+#include "../common/prior_gradient_check.h"
 #include "vwe_vo/backend/gyro_prior.h"
 #include "vwe_vo/sensor/imu.h"
 
@@ -255,25 +256,7 @@ TEST(Imu, GyroPriorGradientMatchesCentralFiniteDifferences) {
   const double nd = 0.005 * kPi / 180;
   const GyroRatePrior prior(spline, first_free, gyroBins(*spline, 0.2 * kPi / 180), 1e-3, nd,
                             0.1 * kPi / 180, 0.1 * kPi / 180);
-  for (int i = first_free; i < spline->numControlPoints(); ++i)
-    spline->setControlPoint(
-        i, spline->controlPoints()[i] + 0.003 * Vec2(std::cos(2.0 * i), std::sin(7.0 * i)));
-  Eigen::VectorXd g;
-  ASSERT_GT(prior.evaluate(&g), 0.0);
-  ASSERT_EQ(g.size(), 2 * (spline->numControlPoints() - first_free));
-  const double h = 1e-6;
-  for (int k = 0; k < g.size(); ++k) {
-    const int i = first_free + k / 2;
-    const Vec2 P = spline->controlPoints()[i];
-    Vec2 d = Vec2::Zero();
-    d(k % 2) = h;
-    spline->setControlPoint(i, P + d);
-    const double fp = prior.evaluate(nullptr);
-    spline->setControlPoint(i, P - d);
-    const double fm = prior.evaluate(nullptr);
-    spline->setControlPoint(i, P);
-    EXPECT_NEAR(g[k], (fp - fm) / (2 * h), 1e-5 * g.norm()) << "param " << k;
-  }
+  test::expectPriorGradientMatchesCentralDifferences(spline.get(), first_free, prior, 0.003, 1e-5);
 }
 
 TEST(Imu, GyroBiasFilterWeighsByInformationThenForgetsSlowly) {
