@@ -15,8 +15,8 @@ namespace test {
 /// Moves the free control points of `spline` by up to `move_m`, then checks the prior's analytic
 /// gradient against central differences (tolerance relative to the gradient's norm).
 inline void expectPriorGradientMatchesCentralDifferences(BSpline* spline, int first_free,
-                                                    const SplinePrior& prior, double move_m,
-                                                    double rel_tol) {
+                                                         const SplinePrior& prior, double move_m,
+                                                         double rel_tol) {
   for (int i = first_free; i < spline->numControlPoints(); ++i)
     spline->setControlPoint(
         i, spline->controlPoints()[i] + move_m * Vec2(std::cos(2.0 * i), std::sin(7.0 * i)));

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "../common/expect_error.h"
 #include "vwe_vo/io/trajectory_io.h"
 
 using namespace vwe_vo;
@@ -26,19 +27,8 @@ std::string writeText(const std::string& name, const std::string& text) {
   return path;
 }
 
-template <typename F>
-std::string errorOf(F f) {
-  try {
-    f();
-  } catch (const std::runtime_error& e) {
-    return e.what();
-  }
-  return "no exception";
-}
-
-void expectContains(const std::string& text, const std::string& part) {
-  EXPECT_NE(text.find(part), std::string::npos) << "'" << text << "' lacks '" << part << "'";
-}
+using test::errorOf;
+using test::expectContains;
 
 // Enough events for a file several times the reader's 4 MiB block (~23 bytes a line).
 EventVector manyEvents(size_t n) {

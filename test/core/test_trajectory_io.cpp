@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "../common/expect_error.h"
 #include "vwe_vo/io/trajectory_io.h"
 
 using namespace vwe_vo;
@@ -21,20 +22,8 @@ std::string writeText(const std::string& name, const std::string& text) {
   return path;
 }
 
-/// The message of the std::runtime_error that f throws ("no exception" otherwise).
-template <typename F>
-std::string errorOf(F f) {
-  try {
-    f();
-  } catch (const std::runtime_error& e) {
-    return e.what();
-  }
-  return "no exception";
-}
-
-void expectContains(const std::string& text, const std::string& part) {
-  EXPECT_NE(text.find(part), std::string::npos) << "'" << text << "' lacks '" << part << "'";
-}
+using test::errorOf;
+using test::expectContains;
 
 }  // namespace
 
