@@ -89,7 +89,7 @@ fuzz: deps $(WS)/src/vwe_vo
 	  || { tail -n 40 $(FUZZ_DIR)/build.log; echo "[fuzz] build FAILED, full log: $(FUZZ_DIR)/build.log"; exit 1; }
 	@/usr/bin/python3 $(ROOT)/test/fuzz/make_seeds.py $(FUZZ_DIR)/seeds
 	@failed=0; for t in $(FUZZ_TARGETS); do mkdir -p $(FUZZ_DIR)/corpus/$$t; \
-	    if ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 $(FUZZ_DIR)/build/fuzz_$$t \
+	    if ASAN_OPTIONS=detect_leaks=1 LSAN_OPTIONS=suppressions=$(ROOT)/test/fuzz/lsan.supp UBSAN_OPTIONS=print_stacktrace=1 $(FUZZ_DIR)/build/fuzz_$$t \
 	       -max_total_time=$(FUZZ_SECONDS) -timeout=10 -rss_limit_mb=2048 -max_len=4096 -print_final_stats=1 \
 	       -artifact_prefix=$(FUZZ_DIR)/artifacts/$$t- $(FUZZ_DIR)/corpus/$$t $(FUZZ_DIR)/seeds/$$t \
 	       > $(FUZZ_DIR)/$$t.log 2>&1; then \
