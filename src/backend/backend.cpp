@@ -47,6 +47,11 @@ void BackendOptions::validate(const std::string& section) const {
     fail("deformation_weight must be >= 0");
   if (!(arc_rate_prior_weight >= 0 && std::isfinite(arc_rate_prior_weight)))
     fail("arc_rate_prior_weight must be >= 0");
+  if (!(yaw_scan_half_range_rad_s >= 0 && yaw_scan_half_range_rad_s <= 1))
+    fail("yaw_scan_half_range_rad_s must be in [0, 1] rad/s (0: off)");
+  if (yaw_scan_half_range_rad_s > 0 &&
+      !(yaw_scan_step_rad_s > 0 && yaw_scan_step_rad_s <= yaw_scan_half_range_rad_s))
+    fail("yaw_scan_step_rad_s must be in (0, yaw_scan_half_range_rad_s]");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
   if (!(output_rate_hz > 0 && output_rate_hz <= 10000))
     fail("output_rate_hz must be in (0, 10000] Hz");
@@ -563,7 +568,7 @@ void Backend::refine(int64_t t_new_ns) {
   so.parameter_tolerance = 1e-6;
   so.logging_type = ceres::SILENT;
   ceres::GradientProblemSolver::Summary summary;
-  Eigen::VectorXd x = Eigen::VectorXd::Zero(params0.size());
+  Eigen::VectorXd x = scanYawOffset(*cost, params0, first_free, step_m);
   ceres::Solve(so, problem, x.data(), &summary);
   const Eigen::VectorXd params = cost->params(x.data());
   const double f1 = objective.evaluate(params, nullptr);  // the solver's last point: kept
@@ -582,6 +587,71 @@ void Backend::refine(int64_t t_new_ns) {
     ++stats_.accepted;
   }
   if (gyro_prior) updateGyroBias(gyro_prior.get(), t_new_ns);
+}
+
+Eigen::VectorXd Backend::scanYawOffset(const MultiVolumeCost& cost, const Eigen::VectorXd& params0,
+                                       int first_free, double step_m) {
+  Eigen::VectorXd x0 = Eigen::VectorXd::Zero(params0.size());
+  const double range = options_.yaw_scan_half_range_rad_s;
+  if (!(range > 0)) return x0;
+  const int p = options_.degree, n = spline_->numControlPoints();
+  const std::vector<double>& knots = spline_->knots();
+  // The new part: past the previous refinement (the whole spline at the first).
+  const double u_old =
+      processed_ns_ >= 0 ? spline_->toSplineTime(processed_ns_) : spline_->validFrom();
+  int first_refit = first_free;
+  while (first_refit < n && knots[first_refit + p + 1] <= u_old) ++first_refit;
+  if (first_refit >= n || !(spline_->validTo() > u_old)) return x0;
+  // The spline as fit, sampled finely (kSub steps per fit sample, the extension's spacing):
+  // its steps past u_old are turned by offset * (u - u_old), and the turned path is refit.
+  constexpr int kSub = 5;
+  const double u_from = std::max(spline_->validFrom(), knots[first_refit]);
+  const double u_to = spline_->validTo();
+  const int samples =
+      std::max(2, int(std::ceil((u_to - u_from) / options_.init_sample_interval_s)) + 1);
+  const int fine = (samples - 1) * kSub + 1;
+  const size_t n_fine = static_cast<size_t>(fine), n_fit = static_cast<size_t>(samples);
+  std::vector<double> u(n_fine, 0.0), u_fit(n_fit, 0.0);
+  std::vector<Vec2> p_fine(n_fine);
+  for (int k = 0; k < fine; ++k) {
+    u[size_t(k)] = u_from + (u_to - u_from) * k / (fine - 1);
+    p_fine[size_t(k)] = spline_->position(u[size_t(k)]);
+  }
+  for (int k = 0; k < samples; ++k) u_fit[size_t(k)] = u[size_t(k * kSub)];
+  BSpline trial = *spline_;
+  std::vector<Vec2> q(n_fine), q_fit(n_fit);
+  auto start_for = [&](double offset) {
+    q[0] = p_fine[0];
+    for (size_t k = 1; k < q.size(); ++k) {
+      const double um = 0.5 * (u[k - 1] + u[k]);
+      const Vec2 step = p_fine[k] - p_fine[k - 1];
+      q[k] = q[k - 1] + (um <= u_old ? step : Eigen::Rotation2Dd(offset * (um - u_old)) * step);
+    }
+    for (int k = 0; k < samples; ++k) q_fit[size_t(k)] = q[size_t(k * kSub)];
+    fitControlPoints(&trial, first_refit, u_fit, q_fit, options_.smoothness_weight);
+    Eigen::VectorXd x(params0.size());
+    for (int i = first_free; i < n; ++i)
+      x.segment<2>(2 * (i - first_free)) =
+          (trial.controlPoints()[size_t(i)] - params0.segment<2>(2 * (i - first_free))) / step_m;
+    return x;
+  };
+  double best_cost = 0.0;
+  if (!cost.Evaluate(x0.data(), &best_cost, nullptr)) return x0;
+  Eigen::VectorXd best = x0;
+  double best_offset = 0.0;
+  const int steps = int(std::floor(range / options_.yaw_scan_step_rad_s + 1e-9));
+  for (int k = -steps; k <= steps; ++k) {
+    if (k == 0) continue;
+    const double offset = k * options_.yaw_scan_step_rad_s;
+    const Eigen::VectorXd x = start_for(offset);
+    double c = 0.0;
+    if (cost.Evaluate(x.data(), &c, nullptr) && c < best_cost)
+      best_cost = c, best = x, best_offset = offset;
+  }
+  ++stats_.yaw_scans;
+  if (best_offset != 0.0) ++stats_.yaw_scans_moved;
+  stats_.yaw_scan_abs_sum_rad_s += std::abs(best_offset);
+  return best;
 }
 
 int64_t Backend::oldestArcTime() const {

@@ -56,10 +56,19 @@ struct BackendOptions {
       1.0;  // third-difference prior on the control-point moves (0: off) [1]
   double arc_rate_prior_weight = 1e-2;  // the arcs' mean yaw rates as measurements, per (deg/s)^2
                                         // vs the normalised VWE (0: off) [1]
-  double max_backwards_jump_s = 0.5;    // arcs older than newest - this reset (YAML:
-                                        // input.max_backward_jump_s) [s]
-  double output_rate_hz = 20.0;         // rate of the sampled trajectory (backend.tum) [Hz]
-  uint64_t seed = 1;                    // subsampling seed
+  // Before the gradient steps, the new part of the spline (past the previous refinement) is
+  // turned by a constant yaw-rate offset from a grid of +-yaw_scan_half_range_rad_s in steps of
+  // yaw_scan_step_rad_s, and the solver starts from the offset of least cost. Over the back-end's
+  // volumes (tau2_s of parallax) the cost tells a yaw rate the front-end's 0.3 s arcs cannot (a
+  // lane change along a facade), but only near the start: the solver alone keeps the front-end's
+  // yaw rate. Off by default: it helps weaving along facades and costs accuracy on some
+  // turns (docs/method.md) (0: off) [rad/s].
+  double yaw_scan_half_range_rad_s = 0.0;
+  double yaw_scan_step_rad_s = 0.025;  // step of the scanned offsets [rad/s]
+  double max_backwards_jump_s = 0.5;   // arcs older than newest - this reset (YAML:
+                                       // input.max_backward_jump_s) [s]
+  double output_rate_hz = 20.0;        // rate of the sampled trajectory (backend.tum) [Hz]
+  uint64_t seed = 1;                   // subsampling seed
   /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
   void validate(const std::string& section = "backend") const;
 };
@@ -82,7 +91,10 @@ struct BackendStats {
   size_t accepted = 0;             // refinements whose result was kept
   double gain_sum = 0.0;           // sum over accepted refinements of f_final / f_start - 1
   double solver_s = 0.0;           // wall time in the solver [s]
-  double last_gain = 0.0;          // objective ratio final / initial of the last refinement
+  size_t yaw_scans = 0;            // refinements that scanned a yaw-rate offset
+  size_t yaw_scans_moved = 0;      // ... and started the solver away from the front-end's rates
+  double yaw_scan_abs_sum_rad_s = 0.0;  // sum of |offset| chosen [rad/s]
+  double last_gain = 0.0;               // objective ratio final / initial of the last refinement
 };
 
 /// The IMU's part of the back-end (Backend::enableImu).
@@ -327,6 +339,10 @@ class Backend {
   void extendSpline(int64_t t_new_ns);
   std::vector<BSpline::Interval> standstillIntervals(int64_t epoch_ns) const;
   void refine(int64_t t_new_ns);
+  /// The solver's start: the cost's best yaw-rate offset of the spline past the previous
+  /// refinement (yaw_scan_*), as x of `cost` (zero: the start as fit).
+  Eigen::VectorXd scanYawOffset(const MultiVolumeCost& cost, const Eigen::VectorXd& params0,
+                                int first_free, double step_m);
   // The IMU (backend_imu.cpp).
   struct Imu;
   std::unique_ptr<Imu> imu_;
