@@ -149,6 +149,7 @@ void Frontend::reset() {
   odometry_.clear();
   gyro_.clear();
   last_omega_ = 0.0;
+  last_curvature_ = 0.0;
   lost_ = true;
   moving_rate_hz_ = 0.0;
   speed_factors_.clear();
@@ -493,6 +494,10 @@ std::vector<ArcEstimate> Frontend::process() {
     bool scanned = false;
     ArcEstimate arc = estimateSpan(window, t0, t1, WindowScan(), &scanned);
     std::vector<ArcEstimate> parts{arc};
+    if (arc.status == ArcStatus::kStandstill) {
+      std::vector<ArcEstimate> edges = standstillEdges(window, t0, t1);
+      if (!edges.empty()) parts = std::move(edges), ++stats_.windows_standstill_edges;
+    }
     // The yaw rate changed within reach of this window: a constant arc would average a ramp
     // badly, so the window is estimated again as two halves (not with overlapping windows).
     const bool tiles = options_.window_by_count || options_.window_stride_s <= 0 ||
@@ -524,6 +529,10 @@ std::vector<ArcEstimate> Frontend::process() {
       arcs.push_back(p);
       extendChain(p.t_start_ns, p.t_end_ns, p.omega, p.v);
     }
+    for (const ArcEstimate& p : parts)
+      if (p.status == ArcStatus::kOk && p.t_end_ns - p.t_start_ns >= strideNs() / 2 &&
+          std::abs(p.v) >= std::max(options_.standstill_speed_mps, 1e-3))
+        last_curvature_ = p.omega / p.v;
     const ArcEstimate& last = parts.back();
     lost_ = last.status == ArcStatus::kLost;
     last_omega_ = last.status == ArcStatus::kOk
@@ -533,6 +542,61 @@ std::vector<ArcEstimate> Frontend::process() {
     moveToNextWindow(t0, t1);
   }
   return arcs;
+}
+
+std::vector<ArcEstimate> Frontend::standstillEdges(const EventVector& events, int64_t t0,
+                                                   int64_t t1) const {
+  // The /odom samples of the window, in time order (addOdometry appends).
+  std::vector<RateSample> samples;
+  for (const RateSample& s : odometry_)
+    if (s.t_ns >= t0 && s.t_ns <= t1) samples.push_back(s);
+  if (samples.size() < 3) return {};
+  auto moving = [&](const RateSample& s) { return std::abs(s.v) >= options_.standstill_speed_mps; };
+  // Braking: moving from t0 until the first sample below the threshold; starting: moving from
+  // the last sample below it until t1.
+  size_t first_still = 0, last_still = samples.size() - 1;
+  while (first_still < samples.size() && moving(samples[first_still])) ++first_still;
+  while (last_still > 0 && moving(samples[last_still])) --last_still;
+  if (first_still >= samples.size() || first_still > last_still) return {};
+  const int64_t t_stop = first_still > 0 ? samples[first_still].t_ns : t0;
+  const int64_t t_go = last_still + 1 < samples.size() ? samples[last_still].t_ns : t1;
+  constexpr int64_t kMinEdge_ns = 20000000;  // shorter edges stay in the standstill
+  const bool head = t_stop - t0 >= kMinEdge_ns, tail = t1 - t_go >= kMinEdge_ns;
+  if ((!head && !tail) || t_go <= t_stop) return {};
+  auto count = [&](int64_t a, int64_t b) {
+    const auto lo = std::lower_bound(events.begin(), events.end(), a,
+                                     [](const PixelEvent& e, int64_t t) { return e.t_ns < t; });
+    const auto hi = std::lower_bound(events.begin(), events.end(), b,
+                                     [](const PixelEvent& e, int64_t t) { return e.t_ns < t; });
+    return size_t(hi - lo);
+  };
+  auto part = [&](int64_t a, int64_t b, bool still) {
+    ArcEstimate arc;
+    arc.t_start_ns = a;
+    arc.t_end_ns = b;
+    arc.t_ref_ns = a + (b - a) / 2;
+    arc.window_events = count(a, b);
+    arc.confidence = 1.0;
+    if (still) {
+      arc.status = ArcStatus::kStandstill;
+      return arc;
+    }
+    double sum = 0;
+    int n = 0;
+    for (const RateSample& s : samples)
+      if (s.t_ns >= a && s.t_ns <= b) sum += s.v, ++n;
+    arc.v = n > 0 ? sum / n : options_.standstill_speed_mps;
+    // A vehicle keeps its steering through a stop: the path's curvature is the one before.
+    arc.omega = last_curvature_ * arc.v;
+    arc.status = ArcStatus::kOk;
+    return arc;
+  };
+  std::vector<ArcEstimate> parts;
+  const int64_t still_from = head ? t_stop : t0, still_to = tail ? t_go : t1;
+  if (head) parts.push_back(part(t0, t_stop, false));
+  parts.push_back(part(still_from, still_to, true));
+  if (tail) parts.push_back(part(t_go, t1, false));
+  return parts;
 }
 
 int64_t Frontend::strideNs() const {

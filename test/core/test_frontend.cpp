@@ -143,6 +143,57 @@ TEST(Frontend, OdometryAtRestMeansStandstill) {
   for (const ArcEstimate& a : arcs) EXPECT_EQ(a.status, ArcStatus::kStandstill);
 }
 
+// A standstill window (by its mean /odom speed) whose end starts moving, and one whose start
+// still brakes: the moving edges become arcs at their /odom speed on the curvature estimated
+// before the stop, and only the rest is held.
+TEST(Frontend, StandstillWindowsKeepTheirMovingEdgesAtTheCurvatureBeforeTheStop) {
+  const double w = 20.0 / kDegPerRad, v = 0.4, kappa = w / v;
+  const AckermannArcModel truth(w, v, secToNs(5.0), defaultTBaseCam());
+  const EventVector events = synthetic::randomPointEvents(camera(), truth, 60000, 7, 0.75, 600);
+  Frontend fe(options(), camera(), defaultTBaseCam());
+  // Windows [4.25, 4.55) and [4.55, 4.85) move at 0.4 m/s; [4.85, 5.15) stands still but
+  // for 0.06 m/s over its last 70 ms; [5.15, 5.45) creeps at 0.06 m/s for its first 50 ms.
+  auto speed = [](double t) {
+    if (t < 4.85) return 0.4;
+    if (t >= 5.09 && t < 5.2) return 0.06;
+    return 0.0;
+  };
+  for (int k = 0; k <= 150; ++k) {
+    const double t = 4.25 + 0.01 * k;
+    fe.addOdometry(secToNs(t), speed(t), 0.0);
+  }
+  fe.addEvents(events);
+  const std::vector<ArcEstimate> arcs = fe.process();
+  ASSERT_GE(arcs.size(), 6u);
+  EXPECT_EQ(fe.stats().windows_standstill_edges, 2u);
+  // The arcs tile the time, and each /odom-moving edge is an arc on the curvature before.
+  double kappa_before = 0;
+  size_t edges = 0;
+  for (size_t i = 0; i < arcs.size(); ++i) {
+    const ArcEstimate& a = arcs[i];
+    if (i > 0) {
+      EXPECT_EQ(a.t_start_ns, arcs[i - 1].t_end_ns);
+    }
+    const double t0 = nsToSec(a.t_start_ns), t1 = nsToSec(a.t_end_ns);
+    if (t1 <= 4.85 + 1e-6) {
+      ASSERT_EQ(a.status, ArcStatus::kOk);
+      EXPECT_NEAR(a.omega * kDegPerRad, 20.0, 0.5);
+      kappa_before = a.omega / a.v;
+    } else if (a.status == ArcStatus::kOk) {
+      ++edges;
+      // The mean of the edge's /odom samples, the still one at its stopped end included.
+      EXPECT_GT(a.v, 0.04) << "edge [" << t0 << ", " << t1 << "]";
+      EXPECT_LE(a.v, 0.06);
+      EXPECT_NEAR(a.omega, kappa_before * a.v, 1e-12);
+      EXPECT_NEAR(a.omega / a.v, kappa, 0.05 * kappa);  // as the estimate before: +-0.5 deg/s
+      EXPECT_LT(t1 - t0, 0.075);
+    } else {
+      EXPECT_EQ(a.status, ArcStatus::kStandstill);
+    }
+  }
+  EXPECT_EQ(edges, 2u);
+}
+
 TEST(Frontend, BadInputIsCountedAndLoopedDataResets) {
   Frontend fe(options(), camera(), defaultTBaseCam());
   EventVector ev(3);

@@ -101,8 +101,9 @@ struct FrontendStats {
   size_t events_in = 0, events_outside = 0, events_out_of_order = 0;
   size_t windows = 0, windows_dropped = 0, windows_split = 0, resets = 0;
   size_t evaluations = 0;
-  size_t windows_slow = 0;       // without odometry: nominal speed scaled by the event rate
-  size_t windows_one_sided = 0;  // estimated with the deeper planes (one_sided.z_min_m)
+  size_t windows_slow = 0;              // without odometry: nominal speed scaled by the event rate
+  size_t windows_standstill_edges = 0;  // standstill windows split where /odom stops or starts
+  size_t windows_one_sided = 0;         // estimated with the deeper planes (one_sided.z_min_m)
   size_t windows_one_sided_near =
       0;  // one-sided, but the structure nearer than one_sided.min_depth_m
 };
@@ -175,6 +176,11 @@ class Frontend {
   /// optimised.
   ArcEstimate estimateSpan(const EventVector& events, int64_t t0, int64_t t1, WindowScan setup,
                            bool* scanned);
+  /// A STANDSTILL window [t0, t1) whose /odom speed reaches standstill_speed_mps at its start
+  /// (braking into the stop) or its end (starting): the window split at those crossings, the
+  /// moving edges as arcs at their /odom speed and the curvature before the stop
+  /// (last_curvature_), the rest STANDSTILL. Empty if the window has no such edge.
+  std::vector<ArcEstimate> standstillEdges(const EventVector& events, int64_t t0, int64_t t1) const;
   /// Extends the dead reckoning over the part of time the span [t0, t1) stands for.
   void extendChain(int64_t t0, int64_t t1, double omega, double v);
   void moveToNextWindow(int64_t t0, int64_t t1);
@@ -201,6 +207,9 @@ class Frontend {
   };
   std::deque<RateSample> odometry_, gyro_;
   double last_omega_ = 0.0;
+  // Path curvature (omega / v) of the last estimated moving arc [1/m]: the steering, which a
+  // vehicle keeps through a stop (the moving edges of a standstill window, standstillEdges()).
+  double last_curvature_ = 0.0;
   bool lost_ = true;
   double moving_rate_hz_ = 0.0;  // slow_rate_fraction: the moving windows' event rate
   struct SpeedFactor {
