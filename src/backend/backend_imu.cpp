@@ -48,7 +48,11 @@ void Backend::advanceImu() {
   Imu& m = *imu_;
   const int64_t t0 = dead_reckoning_ ? dead_reckoning_->startTime() : -1;
   constexpr int64_t kMotionStep_ns = 10000000;  // vehicle motion refreshed every 10 ms
-  constexpr int64_t kDiff_ns = 100000000;       // its derivatives: central differences over 0.2 s
+  // dv: a central difference over at least 0.2 s, and over at least one arc on each side: the
+  // arcs' speeds are constant per window, and a shorter difference across their steps gives
+  // spikes of acceleration (a car braking at 0.3 g showed pitch errors of 2-3 deg).
+  int64_t diff_ns = 100000000;
+  if (!arcs_.empty()) diff_ns = std::max(diff_ns, arcs_.back().t_end_ns - arcs_.back().t_start_ns);
   while (!m.pending.empty() && m.pending.front().t_ns <= newest_arc_ns_) {
     const ImuSample s = m.pending.front();
     m.pending.pop_front();
@@ -56,16 +60,24 @@ void Backend::advanceImu() {
       // The spline's (or the arcs') speed and yaw rate, with a central difference for dv.
       Pose3 T;
       double v = 0, w = 0, va = 0, vb = 0, unused = 0;
-      const int64_t a = std::max(t0, s.t_ns - kDiff_ns),
-                    b = std::min(newest_arc_ns_, s.t_ns + kDiff_ns);
+      const int64_t a = std::max(t0, s.t_ns - diff_ns),
+                    b = std::min(newest_arc_ns_, s.t_ns + diff_ns);
       if (planarPoseAt(s.t_ns, &T, &v, &w) && planarPoseAt(a, &T, &va, &unused) &&
           planarPoseAt(b, &T, &vb, &unused)) {
         const double dt = dtSec(b, a);
         m.motion.v = v;
-        m.motion.omega = w;
+        m.motion.omega = w;  // replaced by the gyro's below
         m.motion.dv = dt > 0 ? (vb - va) / dt : 0.0;
       }
       m.motion_ns = s.t_ns;
+    }
+    // The centripetal acceleration v omega with the gyro's yaw rate (bias removed): the
+    // spline's is the events' estimate, degrees per second off along facades, which the
+    // compensation would turn into roll.
+    if (m.attitude.initialised()) {
+      const Vec3& bias = m.attitude.bias();
+      const Tilt tilt_before = m.attitude.tilt();
+      m.motion.omega = eulerYawRate(s.gyro - bias, tilt_before.roll, tilt_before.pitch);
     }
     m.attitude.add(s, (t0 >= 0 && s.t_ns >= t0) ? m.motion : VehicleMotion());
     const Tilt tilt = m.attitude.tilt();

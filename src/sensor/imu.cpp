@@ -1,6 +1,7 @@
 #include "vwe_vo/sensor/imu.h"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -75,6 +76,8 @@ void AttitudeFilter::reset() {
   initialised_ = false;
   R_.setIdentity();
   w_lp_.setZero();
+  g_init_sum_.setZero();
+  t_start_ns_ = -1;
   const double bz = bias_.z();
   bias_.setZero();
   bias_.z() = bz;
@@ -109,12 +112,15 @@ void AttitudeFilter::add(const ImuSample& s, const VehicleMotion& m) {
   const Vec3 g_meas = s.accel - a_body;  // = R^T (0, 0, g)
   const double g = options_.gravity_mps2;
   if (!initialised_) {
-    const Vec3 f = g_meas.normalized();
+    if (t_start_ns_ < 0 || s.t_ns < t_start_ns_) t_start_ns_ = s.t_ns, g_init_sum_.setZero();
+    g_init_sum_ += g_meas;
+    t_ns_ = s.t_ns;
+    if (dtSec(s.t_ns, t_start_ns_) < kInitWindow_s) return;
+    const Vec3 f = g_init_sum_.normalized();
     Tilt t0;
     t0.roll = std::atan2(f.y(), f.z());
     t0.pitch = std::atan2(-f.x(), std::hypot(f.y(), f.z()));
     R_ = t0.rotation();
-    t_ns_ = s.t_ns;
     initialised_ = true;
     return;
   }
@@ -133,7 +139,11 @@ void AttitudeFilter::add(const ImuSample& s, const VehicleMotion& m) {
     ++stats_.corrections_skipped;
   }
   const double kp = 1.0 / options_.attitude_time_constant_s;
-  const double ki = kp / options_.attitude_bias_time_constant_s;
+  const double tau_b = std::clamp(
+      dtSec(s.t_ns, t_start_ns_),
+      std::min(4.0 * options_.attitude_time_constant_s, options_.attitude_bias_time_constant_s),
+      options_.attitude_bias_time_constant_s);
+  const double ki = kp / tau_b;
   // The z bias is the back-end's: gravity observes it only through the tilt.
   bias_.x() -= ki * e.x() * dt;
   bias_.y() -= ki * e.y() * dt;

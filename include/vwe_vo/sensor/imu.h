@@ -81,10 +81,15 @@ struct AttitudeStats {
 /// gravity, which pulls the attitude with gain 1 / attitude_time_constant_s and estimates the x/y
 /// gyro bias with an integral gain 1 / (attitude_time_constant_s * attitude_bias_time_constant_s).
 /// The z bias (unobservable from gravity on level ground) is the back-end's (setYawBias). Yaw is
-/// integrated but unused.
+/// integrated but unused. The tilt starts from the mean specific force of the first
+/// kInitWindow_s (one 1 kHz sample of an MPU-6150 class accelerometer is 0.7 deg off), and the
+/// integral's time constant grows with the time since then from 4 attitude_time_constant_s
+/// (critically damped) to attitude_bias_time_constant_s, so an unknown bias stops pulling the
+/// tilt off within seconds instead of tens of seconds.
 class AttitudeFilter {
  public:
   static constexpr double kRateFilter_s = 0.05;  // low-pass of the gyro for dw [s]
+  static constexpr double kInitWindow_s = 0.1;   // specific force averaged for the first tilt [s]
   /// lever_arm: the IMU's position in base_link [m].
   AttitudeFilter(const ImuFusionOptions& options, const Vec3& lever_arm);
   /// One sample in base_link (rotateImuSample), in time order, with the vehicle's motion then.
@@ -105,7 +110,9 @@ class AttitudeFilter {
   int64_t t_ns_ = 0;
   Mat3 R_ = Mat3::Identity();  // R_odom_base (yaw integrated, unused)
   Vec3 bias_ = Vec3::Zero();
-  Vec3 w_lp_ = Vec3::Zero();  // low-passed gyro (angular acceleration for the lever arm)
+  Vec3 w_lp_ = Vec3::Zero();        // low-passed gyro (angular acceleration for the lever arm)
+  Vec3 g_init_sum_ = Vec3::Zero();  // specific force summed over the first kInitWindow_s
+  int64_t t_start_ns_ = -1;         // first sample
   AttitudeStats stats_;
 };
 
