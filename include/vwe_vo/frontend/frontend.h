@@ -155,9 +155,9 @@ class Frontend {
   /// Replaces the speed used when no odometry is given (e.g. the back-end's refined speed);
   /// throws std::invalid_argument unless positive and finite.
   void setNominalSpeed(double v_mps);
-  /// The same for a speed measured at t_ns: divided by the slow-window factor
-  /// (slow_rate_fraction) of the window that covers t_ns, so the nominal speed stays that of a
-  /// vehicle at the moving event rate.
+  /// The same for a speed measured at t_ns, taken only if the window that covers t_ns was not a
+  /// slow one (slow_rate_fraction), so the nominal speed stays that of a vehicle at the moving
+  /// event rate.
   void setNominalSpeed(double v_mps, int64_t t_ns);
   /// Event rate of the recent moving windows the slow-window rule compares with (0: none yet).
   double movingEventRate() const { return moving_rate_hz_; }
