@@ -194,6 +194,30 @@ TEST(Frontend, StandstillWindowsKeepTheirMovingEdgesAtTheCurvatureBeforeTheStop)
   EXPECT_EQ(edges, 2u);
 }
 
+// Without /odom a slow window (braking: fewer events per second) is driven slower; the speed the
+// back-end refines there is smoothed across the step to the faster windows and says nothing
+// about the moving speed, so the follower's speed is taken only in windows at the moving rate.
+TEST(Frontend, FollowedSpeedIsTakenOnlyInWindowsAtTheMovingRate) {
+  const AckermannArcModel truth(0.1, 0.4, secToNs(5.0), defaultTBaseCam());
+  const EventVector all = synthetic::randomPointEvents(camera(), truth, 60000, 9, 0.75, 600);
+  // Windows [4.25, 4.55), ..., [4.85, 5.15) at the full rate, then [5.15, 5.45) at 30 % of it.
+  EventVector events;
+  for (size_t i = 0; i < all.size(); ++i)
+    if (all[i].t_ns < secToNs(5.15) || i % 10 < 3) events.push_back(all[i]);
+  Frontend fe(options(), camera(), defaultTBaseCam());
+  fe.addEvents(events);
+  const std::vector<ArcEstimate> arcs = fe.process();
+  ASSERT_GE(arcs.size(), 4u);
+  ASSERT_EQ(fe.stats().windows_slow, 1u);
+  const ArcEstimate& slow = arcs.back();
+  EXPECT_NEAR(slow.v, 0.4 * 0.3 / options().slow_rate_fraction, 0.05);
+  const int64_t t_slow = slow.t_ref_ns, t_moving = arcs.front().t_ref_ns;
+  fe.setNominalSpeed(0.9, t_slow);  // a smoothed speed in the slow window: ignored
+  EXPECT_DOUBLE_EQ(fe.options().nominal_speed_mps, 0.4);
+  fe.setNominalSpeed(0.5, t_moving);  // at the moving rate: taken
+  EXPECT_DOUBLE_EQ(fe.options().nominal_speed_mps, 0.5);
+}
+
 TEST(Frontend, BadInputIsCountedAndLoopedDataResets) {
   Frontend fe(options(), camera(), defaultTBaseCam());
   EventVector ev(3);
