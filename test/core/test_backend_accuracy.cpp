@@ -100,6 +100,20 @@ TEST(BackendAccuracy, IndoorLongWithStandstill) {
   expectIndoorTargets(run("indoor_long"), 0.29, 0.21, 0.18);
 }
 
+// Continuous steering at 0.24-0.36 m/s on an uneven floor (pitch/roll ~0.5 deg, no tilt in
+// the estimate), two 2 s stops in bends: the turtlebot brakes into and restarts from them while
+// it turns, which the standstill windows' moving edges keep (holding the whole windows lost a
+// degree at each restart: yaw RPE 0.28 on the bag).
+TEST(BackendAccuracy, IndoorDriveStopsInBendsOnAnUnevenFloor) {
+  const PipelineRun r = run("indoor_drive");
+  EXPECT_EQ(r.nonfinite_poses, 0u);
+  EXPECT_GE(r.backend.tracked_fraction, 0.95);
+  EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 0.25);        // measured 0.190
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.23);  // measured 0.172
+  std::printf("[backend accuracy] indoor_drive: yaw RPE %.3f deg/s\n",
+              r.backend.rpe.yaw_rmse_deg_s);
+}
+
 // Measured: back-end 0.341 deg/s against the front-end's 0.481 (29 % lower), translation
 // direction 0.177 deg/s, scale per 10 m 0.993-1.008. The ratio moves with where the
 // windows fall (subsampling seed, bag start), so the street asks for 20 % below the front-end.
