@@ -41,6 +41,8 @@ def evaluate(binary, gt, est):
     subprocess.run([binary, "--gt", gt, "--est", est, "--json", path], check=True, stdout=subprocess.DEVNULL)
     e = json.load(open(path))
     return {"rot_rmse_deg_s": e["rpe"]["rot_rmse_deg_s"], "rot_median_deg_s": e["rpe"]["rot_median_deg_s"],
+            "yaw_rpe_rmse_deg_s": e["yaw_rpe_rmse_deg_s"], "tilt_rpe_rmse_deg_s": e["tilt_rpe_rmse_deg_s"],
+            "yaw_rate_lag_s": e["yaw_rate_lag_s"],
             "trans_dir_rmse_deg_s": e["rpe"]["trans_dir_rmse_deg_s"], "ate_percent": e["ate"]["percent_of_path"]}
 
 
@@ -58,13 +60,13 @@ def seeded_config(config, seed):
     return f.name
 
 
-def run(bin_dir, seq, config, run_dir, repeat=1):
+def run(bin_dir, seq, config, run_dir, repeat=1, extra_args=()):
     seq_dir = os.path.join(ROOT, "out", "sequences", seq)
     os.makedirs(run_dir, exist_ok=True)
     reports = []
     for _ in range(max(1, repeat)):
         subprocess.run([os.path.join(bin_dir, "vwe_vo_offline"), "--bag", os.path.join(seq_dir, seq + ".bag"),
-                        "--config", config, "--use-odom", "--no-map", "--quiet", "--out", run_dir],
+                        "--config", config, "--use-odom", "--no-map", "--quiet", "--out", run_dir] + list(extra_args),
                        check=True, stdout=subprocess.DEVNULL)
         reports.append(json.load(open(os.path.join(run_dir, "report.json"))))
     rep = min(reports, key=lambda r: r["event_pipeline"]["real_time_factor"])
@@ -72,7 +74,9 @@ def run(bin_dir, seq, config, run_dir, repeat=1):
     rtfs = [r["event_pipeline"]["real_time_factor"] for r in reports]
     gt = os.path.join(seq_dir, "groundtruth.txt")
     ev = os.path.join(bin_dir, "vwe_vo_eval")
+    imu = be.get("imu")
     return {"duration_s": round(rep["duration_s"], 2), "events": rep["events"],
+            **({"imu_yaw_rate_bias_deg_s": imu["yaw_rate_bias_deg_s"]} if imu else {}),
             # Of the fastest run: the stages' busy times, and the wall time of both together.
             "real_time_factor": {"frontend": round(fe["real_time_factor"], 3),
                                  "backend": round(be["real_time_factor"], 3),
@@ -92,6 +96,9 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "bench"))
     ap.add_argument("--repeat", type=int, default=3, help="timed runs per sequence (min and median reported)")
     ap.add_argument("--seeds", default="", help="comma-separated subsampling seeds to run as well, e.g. 1,2,3")
+    ap.add_argument("--json", default="bench_pipeline.json", help="name of the JSON file in --out")
+    ap.add_argument("--imu", action="store_true",
+                    help="also run each sequence with --use-imu (its /dvs/imu), as with_imu")
     ap.add_argument("sequences", nargs="*", default=["indoor_long", "street_long"])
     a = ap.parse_args()
     bin_dir = os.path.join(a.ws, "devel", "lib", "vwe_vo")
@@ -109,6 +116,16 @@ def main():
               % (seq, f["frontend_plus_backend"], f["runs"], f["frontend_plus_backend_median"], f["frontend"],
                  f["backend"], r["frontend"]["rot_rmse_deg_s"], r["backend"]["rot_rmse_deg_s"],
                  r["odom"]["rot_rmse_deg_s"]), flush=True)
+        if a.imu:
+            ri = run(bin_dir, seq, config_for(seq), os.path.join(a.out, "pipeline", seq + "_imu"), a.repeat,
+                     ["--use-imu"])
+            r["with_imu"] = ri
+            print("[bench] pipeline %-12s with the IMU: RTF front + back %.3f; back-end rotation %.3f, yaw %.3f, "
+                  "tilt %.3f, translation direction %.3f deg/s; yaw-rate bias %.3f deg/s"
+                  % (seq, ri["real_time_factor"]["frontend_plus_backend"], ri["backend"]["rot_rmse_deg_s"],
+                     ri["backend"]["yaw_rpe_rmse_deg_s"], ri["backend"]["tilt_rpe_rmse_deg_s"],
+                     ri["backend"]["trans_dir_rmse_deg_s"], ri.get("imu_yaw_rate_bias_deg_s", float("nan"))),
+                  flush=True)
         if a.seeds:
             by_seed = {}
             for seed in [int(x) for x in a.seeds.split(",")]:
@@ -119,7 +136,7 @@ def main():
                 print("[bench] pipeline %-12s seed %d: rotation RMSE front %.3f back %.3f deg/s"
                       % (seq, seed, by_seed[seed]["frontend"], by_seed[seed]["backend"]), flush=True)
             r["rot_rmse_deg_s_by_seed"] = by_seed
-    path = os.path.join(a.out, "bench_pipeline.json")
+    path = os.path.join(a.out, a.json)
     with open(path, "w") as f:
         json.dump(result, f, indent=1)
     print("[bench] pipeline JSON in " + path)

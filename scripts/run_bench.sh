@@ -21,6 +21,9 @@ done
 # The whole front-end + back-end on the simulated sequences (real-time factor and accuracy).
 if [ "$filter" = "." ] || [[ "pipeline" =~ $filter ]]; then
   /usr/bin/python3 "$(dirname "$0")/bench_pipeline.py" --ws "$ws" --out "$out"
+  # Continuous driving with suspension, with and without the IMU (bench_pipeline_drive.json).
+  /usr/bin/python3 "$(dirname "$0")/bench_pipeline.py" --ws "$ws" --out "$out" --repeat 1 --imu \
+    --json bench_pipeline_drive.json indoor_drive street_drive
 fi
 # The whole system live: replay_check at rate 1 and 2 (CPU per node, drops, /vwe/odom accuracy).
 if [ "$filter" = "." ] || [[ "live" =~ $filter ]]; then
