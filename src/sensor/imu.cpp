@@ -138,11 +138,15 @@ void AttitudeFilter::add(const ImuSample& s, const VehicleMotion& m) {
   } else {
     ++stats_.corrections_skipped;
   }
-  const double kp = 1.0 / options_.attitude_time_constant_s;
-  const double tau_b = std::clamp(
-      dtSec(s.t_ns, t_start_ns_),
-      std::min(4.0 * options_.attitude_time_constant_s, options_.attitude_bias_time_constant_s),
-      options_.attitude_bias_time_constant_s);
+  // Both time constants grow with the time since the start: the proportional one from a quarter
+  // of attitude_time_constant_s, the integral one from 4 times that (critically damped) up to
+  // attitude_bias_time_constant_s.
+  const double elapsed = dtSec(s.t_ns, t_start_ns_), tau_final = options_.attitude_time_constant_s;
+  const double tau = std::clamp(0.25 * elapsed, 0.25 * tau_final, tau_final);
+  const double kp = 1.0 / tau;
+  const double tau_b =
+      std::clamp(elapsed, std::min(4.0 * tau, options_.attitude_bias_time_constant_s),
+                 options_.attitude_bias_time_constant_s);
   const double ki = kp / tau_b;
   // The z bias is the back-end's: gravity observes it only through the tilt.
   bias_.x() -= ki * e.x() * dt;

@@ -82,10 +82,11 @@ struct AttitudeStats {
 /// gyro bias with an integral gain 1 / (attitude_time_constant_s * attitude_bias_time_constant_s).
 /// The z bias (unobservable from gravity on level ground) is the back-end's (setYawBias). Yaw is
 /// integrated but unused. The tilt starts from the mean specific force of the first
-/// kInitWindow_s (one 1 kHz sample of an MPU-6150 class accelerometer is 0.7 deg off), and the
-/// integral's time constant grows with the time since then from 4 attitude_time_constant_s
-/// (critically damped) to attitude_bias_time_constant_s, so an unknown bias stops pulling the
-/// tilt off within seconds instead of tens of seconds.
+/// kInitWindow_s (one 1 kHz sample of an MPU-6150 class accelerometer is 0.7 deg off), and both
+/// time constants grow with the time since then: the proportional one from a quarter of
+/// attitude_time_constant_s to it (over 4 of them), the integral's from 4 times the proportional
+/// one (critically damped) to attitude_bias_time_constant_s, so an unknown bias stops pulling
+/// the tilt off within seconds instead of tens of seconds.
 class AttitudeFilter {
  public:
   static constexpr double kRateFilter_s = 0.05;  // low-pass of the gyro for dw [s]
