@@ -503,13 +503,16 @@ void Backend::refine(int64_t t_new_ns) {
       continue;
     }
     const int64_t t_ref = spline_->epochNs() + secToNs(ur);
-    EventVector ev = buffer_.window(t_ref - secToNs(half), t_ref + secToNs(half));
-    if (ev.size() < options_.min_events_per_volume) {
+    // Only the events the volume votes are copied out of the buffer (1-2 M in a second of a
+    // street at 2 Mev/s, of which it votes max_events_per_volume).
+    const size_t i0 = buffer_.lowerBound(t_ref - secToNs(half));
+    const size_t i1 = buffer_.lowerBound(t_ref + secToNs(half));
+    if (i1 < i0 + options_.min_events_per_volume) {
       ++stats_.volumes_skipped;
       continue;
     }
-    volumes.push_back({t_ref, subsampleEvents(ev, options_.max_events_per_volume,
-                                              options_.seed + volumes.size())});
+    volumes.push_back({t_ref, subsampleRange(buffer_, i0, i1, options_.max_events_per_volume,
+                                             options_.seed + volumes.size())});
   }
   if (volumes.empty()) return;
   stats_.volumes += volumes.size();

@@ -212,6 +212,7 @@ void fields(Archive& a, EmvsOptions* o, GlobalMapOptions* global_map) {
   a("max_events_per_keyframe", &o->max_events_per_keyframe);
   a("max_pending_events", &o->max_pending_events);
   a("max_event_rate_hz", &o->max_event_rate_hz);
+  a("rate_limit_whole_keyframes", &o->rate_limit_whole_keyframes);
 }
 
 template <typename Archive>

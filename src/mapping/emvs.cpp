@@ -319,7 +319,7 @@ void EmvsMapper::addEvents(const EventVector& events) {
       ++dropped_out_of_order_;
       continue;
     }
-    if (options_.max_event_rate_hz > 0) {
+    if (options_.max_event_rate_hz > 0 && !options_.rate_limit_whole_keyframes) {
       const double burst = std::max(1.0, 0.01 * options_.max_event_rate_hz);
       tokens_ = t_tokens_ns_ == INT64_MIN
                     ? 1.0
@@ -356,7 +356,26 @@ void EmvsMapper::addToKeyframe(const PixelEvent& e, int64_t t_pose_ns, const Pos
   t_last_ns_ = e.t_ns;
 }
 
-void EmvsMapper::closeKeyframe(EmvsKeyframe* kf) {
+bool EmvsMapper::closeKeyframe(EmvsKeyframe* kf) {
+  if (options_.max_event_rate_hz > 0 && options_.rate_limit_whole_keyframes) {
+    // The budget grows with data time, up to one second's worth (the first keyframe always
+    // passes); a keyframe is voted while the budget is not in debt, and spends all its events.
+    const double rate = options_.max_event_rate_hz;
+    tokens_ = t_tokens_ns_ == INT64_MIN
+                  ? rate
+                  : std::min(rate, tokens_ + nsToSec(t_last_ns_ - t_tokens_ns_) * rate);
+    t_tokens_ns_ = t_last_ns_;
+    if (tokens_ < 0.0) {
+      thinned_ += kf_events_.size();
+      ++keyframes_skipped_;
+      kf_events_.clear();
+      kf_slices_.clear();
+      counts_ = EmvsCounts();
+      active_ = false;
+      return false;
+    }
+    tokens_ -= double(kf_events_.size());
+  }
   volume_->clear(rays_);
   kf->t_begin_ns = t_kf_ns_;
   kf->t_end_ns = t_last_ns_;
@@ -400,6 +419,7 @@ void EmvsMapper::closeKeyframe(EmvsKeyframe* kf) {
   counts_ = EmvsCounts();
   active_ = false;
   ++num_keyframes_;
+  return true;
 }
 
 std::vector<EmvsKeyframe> EmvsMapper::process(const PoseFunction& T_odom_cam, int64_t t_final_ns) {
@@ -452,16 +472,16 @@ std::vector<EmvsKeyframe> EmvsMapper::process(const PoseFunction& T_odom_cam, in
           const bool turned =
               rotationAngle(T_kf_cam.linear()) * kDegPerRad > options_.kf_rotation_deg;
           if (moved || turned) {
-            done.emplace_back();
-            closeKeyframe(&done.back());
+            EmvsKeyframe kf;
+            if (closeKeyframe(&kf)) done.push_back(std::move(kf));
           }
         }
         if (!active_) startKeyframe(e.t_ns, T_odom_cam_i);
         checked = true;
       }
       if (kf_events_.size() >= options_.max_events_per_keyframe) {
-        done.emplace_back();
-        closeKeyframe(&done.back());
+        EmvsKeyframe kf;
+        if (closeKeyframe(&kf)) done.push_back(std::move(kf));
         startKeyframe(e.t_ns, T_odom_cam_i);
       }
       addToKeyframe(e, middle ? t_slice : e.t_ns, T_odom_cam_i);
@@ -473,8 +493,7 @@ std::vector<EmvsKeyframe> EmvsMapper::process(const PoseFunction& T_odom_cam, in
 
 bool EmvsMapper::finish(EmvsKeyframe* keyframe) {
   if (!active_) return false;
-  closeKeyframe(keyframe);
-  return true;
+  return closeKeyframe(keyframe);
 }
 
 void EmvsMapper::reset() {

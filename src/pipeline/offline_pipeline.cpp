@@ -447,6 +447,7 @@ nlohmann::json OfflinePipeline::report() const {
         {"events_out_of_order", mapper_->droppedOutOfOrder()},
         {"events_dropped_pending", mapper_->droppedPending()},
         {"events_thinned", mapper_->thinned()},
+        {"keyframes_left_out", mapper_->keyframesSkipped()},
         {"keyframe_points", map_counts_.points},
         {"outliers_removed", map_counts_.outliers},
         {"map_points", map_->size()},

@@ -144,19 +144,18 @@ void MappingNode::workerLoop() {
   while (true) {
     std::deque<Input> inputs;
     if (!input_.takeAll(&inputs, std::chrono::milliseconds(100))) break;
-    std::deque<Packet> batch;
-    std::shared_ptr<const BSpline> spline;  // the newest trajectory of the batch
-    for (Input& input : inputs) {
-      if (input.spline)
-        spline = std::move(input.spline);
-      else
-        batch.push_back(Packet{std::move(input.events), std::move(input.reset_why)});
-    }
     const ros::WallTime start = ros::WallTime::now();
     try {
-      for (const Packet& p : batch) handleEvents(p.events, p.reset_why);
-      if (spline) spline_ = spline;
-      if (!batch.empty() || spline) mapCovered();
+      // In arrival order, each packet mapped as far as the trajectory covers it before the next
+      // is buffered: only events the trajectory does not cover yet wait in the mapper (bounded
+      // by max_pending_events), however many packets a busy worker finds queued.
+      for (Input& input : inputs) {
+        if (input.spline)
+          spline_ = std::move(input.spline);
+        else
+          handleEvents(input.events, input.reset_why);
+        mapCovered();
+      }
       if (mapper_->hasKeyframe() && node_options_.keyframe_timeout_s > 0 &&
           (start - last_events_wall_).toSec() > node_options_.keyframe_timeout_s) {
         EmvsKeyframe last;
@@ -270,14 +269,15 @@ void MappingNode::publishCloud() {
 void MappingNode::logStatus() {
   const ros::WallTime now = ros::WallTime::now();
   ROS_INFO(
-      "mapping_node: %zu keyframes (%zu empty), global map %zu points (%zu dropped); events: %zu "
-      "voted (%zu thinned to the rate limit), %zu waiting, %zu not covered by the trajectory, %zu "
+      "mapping_node: %zu keyframes (%zu empty, %zu left out by the rate limit), global map %zu "
+      "points (%zu dropped); events: %zu voted (%zu thinned to the rate limit), %zu waiting, %zu "
+      "not covered by the trajectory, %zu "
       "non-finite pose, %zu late, %zu "
       "dropped waiting; %zu resets; busy %.1f s; input: %s",
-      keyframes_, keyframes_empty_, map_->size(), map_->dropped(), counts_.voted,
-      mapper_->thinned(), mapper_->pendingEvents(), counts_.skipped_time, counts_.skipped_nan,
-      mapper_->droppedOutOfOrder(), mapper_->droppedPending(), resets_, busy_wall_s_,
-      input_.statusLine().c_str());
+      keyframes_, keyframes_empty_, mapper_->keyframesSkipped(), map_->size(), map_->dropped(),
+      counts_.voted, mapper_->thinned(), mapper_->pendingEvents(), counts_.skipped_time,
+      counts_.skipped_nan, mapper_->droppedOutOfOrder(), mapper_->droppedPending(), resets_,
+      busy_wall_s_, input_.statusLine().c_str());
   last_status_ = now;
 }
 

@@ -205,7 +205,9 @@ std::string NodeInputBase::statusLine() const {
         << " wrong_size=" << counters_.packets_wrong_size
         << " outside=" << counters_.events_outside;
     s << " refused=" << c.refused << " before_calibration=" << c.before_calibration
-      << " dropped=" << c.dropped << "; ";
+      << " dropped=" << c.dropped;
+    if (overflow_[k] == Overflow::kReplaceOldest) s << " superseded=" << c.superseded;
+    s << "; ";
   }
   s << "camera_info refused=" << counters_.camera_info_refused;
   if (used_[size_t(InputKind::kEvents)]) {

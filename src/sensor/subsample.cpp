@@ -4,22 +4,17 @@
 
 namespace vwe_vo {
 
-EventVector subsampleEvents(const EventVector& events, size_t max_events, uint64_t seed) {
-  if (max_events == 0 || events.size() <= max_events) return events;
-  EventVector out;
-  out.reserve(max_events);
-  const double stride = double(events.size()) / double(max_events);
-  // Phase in [0, stride) from a splitmix64 hash of the seed: deterministic, seed-dependent.
+double subsamplePhase(uint64_t seed, double stride) {
   uint64_t z = seed + 0x9e3779b97f4a7c15ULL;
   z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
   z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
   z ^= z >> 31;
-  const double phase = double(z >> 11) / double(1ULL << 53) * stride;
-  for (size_t k = 0; k < max_events; ++k) {
-    const size_t i = std::min(events.size() - 1, size_t(phase + double(k) * stride));
-    out.push_back(events[i]);
-  }
-  return out;
+  return double(z >> 11) / double(1ULL << 53) * stride;
+}
+
+EventVector subsampleEvents(const EventVector& events, size_t max_events, uint64_t seed) {
+  if (max_events == 0 || events.size() <= max_events) return events;
+  return subsampleRange(events, 0, events.size(), max_events, seed);
 }
 
 EventVector subsampleEventsPerTimeSlice(const EventVector& events, int64_t t0_ns, int64_t t1_ns,

@@ -343,12 +343,13 @@ TEST(Emvs, EventsAfterTheFinalTimeWaitForTheTrajectory) {
 }
 
 TEST(Emvs, RateLimitKeepsEventsEvenlyAndCountsTheRest) {
-  // 100k events/s for 1 s, limited to 30k events/s: 30k kept (within the 10 ms burst), as many in
-  // each half second, the rest counted as thinned.
+  // Thinning events, not keyframes. 100k events/s for 1 s, limited to 30k events/s: 30k kept
+  // (within the 10 ms burst), as many in each half second, the rest counted as thinned.
   EventVector events;
   for (int i = 0; i < 100000; ++i) events.push_back({secToNs(1.0) + int64_t(i) * 10000, 10, 10, 1});
   EmvsOptions o;
   o.max_event_rate_hz = 30000;
+  o.rate_limit_whole_keyframes = false;
   EmvsMapper mapper(o, camera());
   mapper.addEvents(EventVector(events.begin(), events.begin() + 50000));
   const size_t first_half = mapper.pendingEvents();
@@ -359,6 +360,53 @@ TEST(Emvs, RateLimitKeepsEventsEvenlyAndCountsTheRest) {
   EXPECT_EQ(kept + mapper.thinned(), events.size());
   o.max_event_rate_hz = -1;
   EXPECT_THROW(o.validate(), std::invalid_argument);
+}
+
+TEST(Emvs, WholeKeyframeRateLimitVotesKeyframesWithAllTheirEvents) {
+  // 100k events/s for 4 s on a camera moving 0.6 m/s: a keyframe every 0.12 m (0.2 s, 20k
+  // events), limited to 50k events/s by leaving out whole keyframes. The budget starts at and
+  // saves up to one second's worth, and a keyframe passes while it is not in debt: over 4 s at
+  // most 5 s of budget plus one keyframe are voted, and at least 4 s of budget minus one keyframe.
+  const double rate = 50000.0, duration_s = 4.0;
+  const LinearMotionModel truth(Vec3(0.6, 0.0, 0.0), 0, 0, secToNs(duration_s));
+  EventVector events;
+  for (int i = 0; i < 400000; ++i)
+    events.push_back({int64_t(i) * 10000, uint16_t(10 + i % 300), uint16_t(10 + (i / 300) % 200),
+                      int8_t(i % 2 ? 1 : -1)});
+  EmvsOptions o = unitOptions();
+  o.volume.num_planes = 20;
+  o.kf_distance_m = 0.12;
+  o.max_event_rate_hz = rate;
+  o.rate_limit_whole_keyframes = true;
+  EmvsMapper mapper(o, camera());
+  mapper.addEvents(events);
+  EXPECT_EQ(mapper.thinned(), 0u);  // nothing is thinned on arrival
+  std::vector<EmvsKeyframe> kfs = mapper.process(poseFunction(truth), secToNs(duration_s));
+  EmvsKeyframe last;
+  if (mapper.finish(&last)) kfs.push_back(last);
+  size_t voted = 0;
+  for (const EmvsKeyframe& kf : kfs) {
+    // A keyframe voted has every one of its events (the rays behind the camera aside).
+    EXPECT_EQ(kf.counts.voted + kf.counts.skipped_behind, kf.counts.events);
+    EXPECT_GT(kf.counts.events, 15000u);
+    voted += kf.counts.events;
+  }
+  const size_t per_keyframe = 20000;
+  EXPECT_GT(mapper.keyframesSkipped(), 0u);
+  EXPECT_EQ(kfs.size(), mapper.numKeyframes());  // numKeyframes counts those voted
+  EXPECT_EQ(voted + mapper.thinned(), events.size());
+  EXPECT_LE(double(voted), rate * (duration_s + 1.0) + per_keyframe);
+  EXPECT_GE(double(voted), rate * duration_s - per_keyframe);
+  // The same stream without the limit votes everything.
+  o.max_event_rate_hz = 0.0;
+  EmvsMapper all(o, camera());
+  all.addEvents(events);
+  size_t all_voted = 0;
+  for (const EmvsKeyframe& kf : all.process(poseFunction(truth), secToNs(duration_s)))
+    all_voted += kf.counts.events;
+  if (all.finish(&last)) all_voted += last.counts.events;
+  EXPECT_EQ(all_voted, events.size());
+  EXPECT_EQ(all.keyframesSkipped(), 0u);
 }
 
 TEST(Emvs, NanPosesAreSkippedAndCounted) {

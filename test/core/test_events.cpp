@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "vwe_vo/sensor/events.h"
+#include "vwe_vo/sensor/subsample.h"
 
 using namespace vwe_vo;
 
@@ -40,4 +41,30 @@ TEST(EventBuffer, WindowsAndOutOfOrderEvents) {
   b.dropBefore(30);
   EXPECT_EQ(b.size(), 2u);
   EXPECT_EQ(b.oldestTime(), 30);
+}
+
+// The back-end subsamples its volumes straight out of the buffer: the same events, seed for seed,
+// as copying the window out and subsampling the copy.
+TEST(Subsample, RangeOfABufferKeepsTheEventsOfTheCopiedWindow) {
+  EventBuffer buffer;
+  for (int i = 0; i < 5000; ++i)
+    buffer.push(PixelEvent{int64_t(i) * 1000, uint16_t(i % 346), uint16_t(i % 260),
+                           int8_t(i % 2 ? 1 : -1)});
+  const int64_t t0 = 1'234'500, t1 = 4'321'000;
+  const size_t i0 = buffer.lowerBound(t0), i1 = buffer.lowerBound(t1);
+  const EventVector window = buffer.window(t0, t1);
+  ASSERT_EQ(window.size(), i1 - i0);
+  for (size_t max_events : {size_t(0), size_t(100), size_t(777), window.size(), size_t(10000)}) {
+    for (uint64_t seed : {0u, 3u, 41u}) {
+      const EventVector a = subsampleEvents(window, max_events, seed);
+      const EventVector b = subsampleRange(buffer, i0, i1, max_events, seed);
+      ASSERT_EQ(a.size(), b.size()) << max_events << " " << seed;
+      EXPECT_EQ(a.size(), max_events == 0 ? window.size() : std::min(max_events, window.size()));
+      for (size_t k = 0; k < a.size(); ++k) ASSERT_EQ(a[k].t_ns, b[k].t_ns) << k;
+      // Kept events stay in the window, in time order.
+      EXPECT_GE(b.front().t_ns, t0);
+      EXPECT_LT(b.back().t_ns, t1);
+    }
+  }
+  EXPECT_TRUE(subsampleRange(buffer, 10, 10, 100, 1).empty());
 }

@@ -260,7 +260,13 @@ TEST_F(NodeInputTest, DropOldestKeepsTheNewestInArrivalOrder) {
   const NodeInputCounters c = input.counters();
   EXPECT_EQ(c[InputKind::kFrame].in, 3u);
   EXPECT_EQ(c[InputKind::kFrame].dropped, 1u);
-  EXPECT_EQ(c[InputKind::kTrajectory].dropped, 1u);
+  // Only the newest trajectory matters: the one it replaced is superseded, not lost.
+  EXPECT_EQ(c[InputKind::kTrajectory].dropped, 0u);
+  EXPECT_EQ(c[InputKind::kTrajectory].superseded, 1u);
+  EXPECT_NE(input.statusLine().find("trajectory in=2 refused=0 before_calibration=0 dropped=0 "
+                                    "superseded=1; "),
+            std::string::npos)
+      << input.statusLine();
 }
 
 TEST_F(NodeInputTest, StatusLineHasTheCountersOfEveryKindInUse) {

@@ -54,6 +54,10 @@ struct EmvsOptions {
       8000000;  // events waiting for the trajectory; the oldest are dropped beyond
   double max_event_rate_hz = 500000.0;  // vote at most this many events per second (evenly over
                                         // time, the others counted as thinned); 0 = all
+  bool rate_limit_whole_keyframes =
+      true;  // keep max_event_rate_hz by leaving out whole keyframes (their events counted as
+             // thinned) instead of thinning every keyframe's events: each DSI voted keeps all
+             // its events, so its depth is as good as unlimited; the map has fewer keyframes
   /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
   void validate(const std::string& section = "mapping") const;
 };
@@ -133,7 +137,8 @@ class EmvsMapper {
   /// does not cover are skipped and counted, later events stay buffered.
   /// Returns the keyframes closed meanwhile.
   std::vector<EmvsKeyframe> process(const PoseFunction& T_odom_cam, int64_t t_final_ns);
-  /// Closes the current keyframe (end of data); false if there is none.
+  /// Closes the current keyframe (end of data); false if there is none (or the rate limit of
+  /// rate_limit_whole_keyframes left it out).
   bool finish(EmvsKeyframe* keyframe);
   /// Forgets the buffer and the current keyframe (e.g. a looped bag); totals are kept.
   void reset();
@@ -142,8 +147,10 @@ class EmvsMapper {
   size_t pendingEvents() const { return pending_.size(); }
   size_t droppedOutOfOrder() const { return dropped_out_of_order_; }
   size_t droppedPending() const { return dropped_pending_; }
-  /// Events left out to stay within max_event_rate_hz.
+  /// Events left out to stay within max_event_rate_hz (also those of keyframes left out).
   size_t thinned() const { return thinned_; }
+  /// Keyframes left out whole to stay within max_event_rate_hz (rate_limit_whole_keyframes).
+  size_t keyframesSkipped() const { return keyframes_skipped_; }
   size_t numKeyframes() const { return num_keyframes_; }
   const ProjectiveVolume& volume() const { return *volume_; }
 
@@ -157,7 +164,9 @@ class EmvsMapper {
     int64_t t_ns;
     Pose3 T_odom_cam;
   };
-  void closeKeyframe(EmvsKeyframe* keyframe);
+  /// Votes the keyframe's DSI and extracts its cloud; false (nothing voted, the events counted
+  /// as thinned) when rate_limit_whole_keyframes leaves it out.
+  bool closeKeyframe(EmvsKeyframe* keyframe);
   void startKeyframe(int64_t t_ns, const Pose3& T_odom_cam);
   void addToKeyframe(const PixelEvent& e, int64_t t_pose_ns, const Pose3& T_odom_cam);
 
@@ -167,7 +176,9 @@ class EmvsMapper {
   ThreadPool pool_;  // ray building
   std::deque<PixelEvent> pending_;
   size_t dropped_out_of_order_ = 0, dropped_pending_ = 0, num_keyframes_ = 0, thinned_ = 0;
-  // Token bucket of max_event_rate_hz: events earn a vote as time passes (at most 10 ms worth).
+  size_t keyframes_skipped_ = 0;
+  // Token bucket of max_event_rate_hz: events earn a vote as time passes (at most 10 ms worth;
+  // with rate_limit_whole_keyframes at most 1 s worth, spent a keyframe at a time).
   double tokens_ = 0.0;
   int64_t t_tokens_ns_ = INT64_MIN;
   // The keyframe being gathered.

@@ -59,10 +59,6 @@ class MappingNode {
     std::string reset_why;                  // the input's timestamp policy resets before these
     std::shared_ptr<const BSpline> spline;  // a trajectory (then events is empty)
   };
-  struct Packet {
-    EventVector events;
-    std::string reset_why;
-  };
 
   void readParameters();
   void eventsCallback(const EventArray::ConstPtr& msg);

@@ -47,8 +47,8 @@ const char* inputKindName(InputKind kind);
 enum class Overflow {
   kRefuseNewest,   // the arriving input is dropped (a stream the worker must see in order)
   kDropOldest,     // the oldest queued input of the kind goes (a live stream: frames)
-  kReplaceOldest,  // as kDropOldest, but expected (only the newest matters): counted, not warned
-                   // about
+  kReplaceOldest,  // as kDropOldest, but expected (only the newest matters): counted as
+                   // superseded, not as lost, and not warned about
 };
 
 /// The coarsest thinning of the overload policy: at least 1 event in 8 is kept. The front-end's
@@ -62,6 +62,7 @@ struct InputKindCounters {
   size_t refused = 0;             // refused by a check or the conversion
   size_t before_calibration = 0;  // arrived while there was no calibration yet
   size_t dropped = 0;             // lost to a full queue (refused or pushed out)
+  size_t superseded = 0;          // replaced by a newer one (Overflow::kReplaceOldest): not lost
 };
 
 /// Everything counted at the input (a snapshot).
@@ -194,7 +195,8 @@ class NodeInput : public NodeInputBase {
                it != queue_.end() && queued_[size_t(kind)] + size > bound_[size_t(kind)];) {
             if (it->kind == kind) {
               queued_[size_t(kind)] -= it->size;
-              ++counters_.kinds[size_t(kind)].dropped;
+              InputKindCounters& c = counters_.kinds[size_t(kind)];
+              ++(overflow_[size_t(kind)] == Overflow::kReplaceOldest ? c.superseded : c.dropped);
               it = queue_.erase(it);
             } else {
               ++it;

@@ -2,6 +2,7 @@
 // (the front-end's and back-end's volumes, the front-end node's window).
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 
@@ -12,6 +13,30 @@ namespace vwe_vo {
 /// Deterministic uniform subsampling to at most max_events (every k-th event on a fractional
 /// stride, the phase chosen from seed). Returns the input unchanged if it is small enough.
 EventVector subsampleEvents(const EventVector& events, size_t max_events, uint64_t seed);
+
+/// The phase in [0, stride) subsampleEvents starts at for `seed` (a splitmix64 hash of it).
+double subsamplePhase(uint64_t seed, double stride);
+
+/// subsampleEvents of the events [begin, end) of any indexable sequence (an EventBuffer), copying
+/// only the events it keeps: the same events as subsampleEvents of that range copied out.
+template <typename Events>
+EventVector subsampleRange(const Events& events, size_t begin, size_t end, size_t max_events,
+                           uint64_t seed) {
+  EventVector out;
+  if (end <= begin) return out;
+  const size_t n = end - begin;
+  if (max_events == 0 || n <= max_events) {
+    out.reserve(n);
+    for (size_t i = begin; i < end; ++i) out.push_back(events[i]);
+    return out;
+  }
+  out.reserve(max_events);
+  const double stride = double(n) / double(max_events);
+  const double phase = subsamplePhase(seed, stride);
+  for (size_t k = 0; k < max_events; ++k)
+    out.push_back(events[begin + std::min(n - 1, size_t(phase + double(k) * stride))]);
+  return out;
+}
 /// Subsampling that gives every one of `bins` equal time slices of [t0, t1) the same budget
 /// (max_events / bins, all of a slice's events when it has fewer): the VWE then weighs time, not
 /// event count, so a window whose motion changes is not pulled towards its busiest part.
