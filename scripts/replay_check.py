@@ -48,6 +48,7 @@ PATTERNS = {
         "arcs_ok": r"\((\d+) ok,",
         "windows_lost": r"(\d+) lost,",
         "windows_skipped_behind": r"(\d+) windows skipped behind",
+        "windows_thinned_behind": r"(\d+) thinned behind",
         "resets": r"(\d+) resets",
         "real_time_factor": r"real-time factor ([0-9.]+)",
     },

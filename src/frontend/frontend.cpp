@@ -452,9 +452,14 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
     arc.omega = last_omega_;
     arc.v = v;
   } else {
-    const EventVector sub =
-        subsampleEventsPerTimeSlice(events, t0, t1, options_.max_events_per_volume,
-                                    options_.subsample_time_slices, options_.seed + stats_.windows);
+    size_t budget = options_.max_events_per_volume;
+    if (volume_thinning_ > 1) {
+      budget = std::max(
+          {budget / volume_thinning_, size_t(100), size_t(10 * options_.subsample_time_slices)});
+      ++stats_.windows_thinned;
+    }
+    const EventVector sub = subsampleEventsPerTimeSlice(
+        events, t0, t1, budget, options_.subsample_time_slices, options_.seed + stats_.windows);
     double center = lost_ ? 0.0 : last_omega_;
     double half = lost_ ? options_.omega_max_rad_s : options_.scan_half_range_rad_s;
     double gyro = 0.0;

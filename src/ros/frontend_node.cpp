@@ -237,6 +237,19 @@ void FrontendNode::workerLoop() {
       const double window_s =
           frontend_options_.window_duration_s;  // by-count windows: an approximation
       const double backlog_s = frontend_->pendingWindows() * window_s;
+      // Behind by more than half of ~max_latency_s: the windows vote half their events, then a
+      // quarter (cheaper windows, none lost); back to all once the backlog is under one window.
+      // Whole windows are skipped only beyond ~max_latency_s.
+      const size_t thinning = frontend_->volumeThinning();
+      if (backlog_s > 0.5 * node_options_.max_latency_s && thinning < kMaxVolumeThinning) {
+        frontend_->setVolumeThinning(2 * thinning);
+        ROS_WARN_THROTTLE(5,
+                          "frontend_node: %.2f s of events behind: windows vote 1/%zu of "
+                          "max_events_per_volume (%zu windows thinned so far)",
+                          backlog_s, 2 * thinning, frontend_->stats().windows_thinned);
+      } else if (backlog_s < window_s && thinning > 1) {
+        frontend_->setVolumeThinning(thinning / 2);
+      }
       if (backlog_s > node_options_.max_latency_s) {
         const size_t keep = std::max<size_t>(1, size_t(node_options_.max_latency_s / window_s));
         const size_t dropped = frontend_->dropBacklog(keep);
@@ -372,12 +385,12 @@ void FrontendNode::logStatus() {
   ROS_INFO(
       "frontend_node: %zu windows (%zu split in two) (%zu one-sided, %zu one-sided but near) -> "
       "%zu arcs (%zu ok, %zu standstill, %zu lost, %zu "
-      "low events), %zu windows skipped behind; "
+      "low events), %zu windows skipped behind, %zu thinned behind; "
       "%.0f events/s in, %zu outside the sensor, %zu late; %zu resets; real-time factor %.3f; "
       "input: %s",
       s.windows, s.windows_split, s.windows_one_sided, s.windows_one_sided_near,
       windows_ok_ + windows_standstill_ + windows_lost_ + windows_low_, windows_ok_,
-      windows_standstill_, windows_lost_, windows_low_, s.windows_dropped,
+      windows_standstill_, windows_lost_, windows_low_, s.windows_dropped, s.windows_thinned,
       double(s.events_in - last_status_events_) / wall_s,
       s.events_outside + input_.counters().events_outside, s.events_out_of_order, s.resets,
       processed_data_s_ > 0 ? busy_wall_s_ / processed_data_s_ : 0.0, input_.statusLine().c_str());

@@ -51,6 +51,27 @@ TEST(Frontend, RecoversTheYawRateOfAConstantArc) {
   }
 }
 
+// A node behind its input thins its windows instead of skipping them: each window votes
+// max_events_per_volume / k events and still finds the arc.
+TEST(Frontend, ThinnedWindowsVoteFewerEventsAndStillFindTheArc) {
+  const double w_deg = 20.0;
+  const AckermannArcModel truth(w_deg / kDegPerRad, 0.4, secToNs(5.0), defaultTBaseCam());
+  const EventVector events = synthetic::randomPointEvents(camera(), truth, 60000, 11, 0.75, 600);
+  for (size_t k : {size_t(1), size_t(2), size_t(4)}) {
+    Frontend fe(options(), camera(), defaultTBaseCam());
+    fe.setVolumeThinning(k);
+    fe.addEvents(events);
+    const std::vector<ArcEstimate> arcs = fe.process();
+    ASSERT_GE(arcs.size(), 4u);
+    for (const ArcEstimate& a : arcs) {
+      ASSERT_GT(a.window_events, options().max_events_per_volume);
+      EXPECT_EQ(a.num_events, options().max_events_per_volume / k);
+      EXPECT_NEAR(a.omega * kDegPerRad, w_deg, 0.5) << "1/" << k;
+    }
+    EXPECT_EQ(fe.stats().windows_thinned, k > 1 ? fe.stats().windows : 0u);
+  }
+}
+
 TEST(Frontend, CoarseToFineFullScanFindsATurnWithFewerEvaluations) {
   // A 0.3 s window of a 35 deg/s turn scanned around a previous yaw rate of 0: the peak lies
   // beyond the local scan, so the full range is scanned; coarse to fine must land on the same

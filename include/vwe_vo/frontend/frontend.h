@@ -3,6 +3,7 @@
 // dead-reckoned pose. Synchronous and ROS-free: the offline runner and frontend_node drive it.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <deque>
 #include <limits>
@@ -100,6 +101,7 @@ Trajectory3 integrateArcs(const std::vector<ArcEstimate>& arcs, int64_t step_ns)
 struct FrontendStats {
   size_t events_in = 0, events_outside = 0, events_out_of_order = 0;
   size_t windows = 0, windows_dropped = 0, windows_split = 0, resets = 0;
+  size_t windows_thinned = 0;  // estimated on 1/k of max_events_per_volume (setVolumeThinning)
   size_t evaluations = 0;
   size_t windows_slow = 0;              // without odometry: nominal speed scaled by the event rate
   size_t windows_standstill_edges = 0;  // standstill windows split where /odom stops or starts
@@ -136,6 +138,11 @@ class Frontend {
   std::vector<ArcEstimate> process();
   /// Skips every complete window but the newest `keep` (a node that falls behind); counted.
   size_t dropBacklog(size_t keep);
+  /// A node that falls behind: the windows that follow vote max_events_per_volume / k events (at
+  /// least 100 and 10 per time slice), about k times less work each; every window is still
+  /// estimated (counted in windows_thinned). k = 1 restores the configured budget.
+  void setVolumeThinning(size_t k) { volume_thinning_ = std::max<size_t>(1, k); }
+  size_t volumeThinning() const { return volume_thinning_; }
   /// Complete windows waiting in the buffer.
   size_t pendingWindows() const;
 
@@ -218,6 +225,7 @@ class Frontend {
   };
   std::deque<SpeedFactor> speed_factors_;  // of the newest windows (setNominalSpeed)
   std::unique_ptr<ArcChain> chain_;
+  size_t volume_thinning_ = 1;  // setVolumeThinning
   FrontendStats stats_;
 };
 

@@ -28,6 +28,10 @@
 
 namespace vwe_vo {
 
+/// The front-end's thinning when it falls behind: its windows vote down to 1/4 of
+/// max_events_per_volume before whole windows are skipped (~max_latency_s).
+constexpr size_t kMaxVolumeThinning = 4;
+
 /// Everything the node reads from the parameter server, once, at start-up.
 struct FrontendNodeOptions {
   std::string config_path;         // ~config: pipeline YAML (front-end options, T_base_cam); empty:
