@@ -218,12 +218,25 @@ size_t Frontend::pendingWindows() const {
   return span >= 0 ? size_t(span / strideNs()) + 1 : 0;
 }
 
-size_t Frontend::dropBacklog(size_t keep) {
+size_t Frontend::dropBacklog(size_t keep, std::vector<ArcEstimate>* skipped) {
   size_t dropped = 0;
-  EventVector unused;
   int64_t t0, t1;
   while (pendingWindows() > keep && nextWindow(nullptr, &t0, &t1)) {
-    extendChain(t0, t1, last_omega_, 0.0);  // unknown motion: hold the position
+    // Unknown rotation: the last yaw rate is held; the speed is /odom's, else the position holds.
+    bool standstill = false, measured = false;
+    const double v_odom = speedAt(t0, t1, &standstill, &measured);
+    const double v = measured && !standstill ? v_odom : 0.0;
+    extendChain(t0, t1, last_omega_, v);
+    if (skipped) {
+      ArcEstimate arc;
+      arc.t_start_ns = t0;
+      arc.t_end_ns = t1;
+      arc.t_ref_ns = t0 + (t1 - t0) / 2;
+      arc.omega = last_omega_;
+      arc.v = v;
+      arc.status = ArcStatus::kLost;
+      skipped->push_back(arc);
+    }
     moveToNextWindow(t0, t1);
     ++dropped;
   }

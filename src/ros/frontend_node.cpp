@@ -252,7 +252,11 @@ void FrontendNode::workerLoop() {
       }
       if (backlog_s > node_options_.max_latency_s) {
         const size_t keep = std::max<size_t>(1, size_t(node_options_.max_latency_s / window_s));
-        const size_t dropped = frontend_->dropBacklog(keep);
+        // The skipped windows go out as LOST arcs: the back-end holds its rates through them
+        // instead of finding a gap in the arcs (a reset beyond its max_gap_s).
+        std::vector<ArcEstimate> skipped;
+        const size_t dropped = frontend_->dropBacklog(keep, &skipped);
+        for (const ArcEstimate& arc : skipped) publishArc(arc);
         ROS_WARN_THROTTLE(
             5,
             "frontend_node: %.2f s of events behind (> ~max_latency_s %.2f): %zu windows skipped "

@@ -72,6 +72,37 @@ TEST(Frontend, ThinnedWindowsVoteFewerEventsAndStillFindTheArc) {
   }
 }
 
+// A node far behind skips windows; they go out as LOST arcs at the last yaw rate, so the arcs
+// stay continuous in time (the back-end holds its rates through them instead of resetting).
+TEST(Frontend, SkippedWindowsBecomeContinuousLostArcs) {
+  const double w_deg = 20.0;
+  const AckermannArcModel truth(w_deg / kDegPerRad, 0.4, secToNs(5.0), defaultTBaseCam());
+  const EventVector events = synthetic::randomPointEvents(camera(), truth, 60000, 11, 0.75, 600);
+  Frontend fe(options(), camera(), defaultTBaseCam());
+  const size_t half = events.size() / 3;
+  fe.addEvents(EventVector(events.begin(), events.begin() + long(half)));
+  std::vector<ArcEstimate> arcs = fe.process();
+  ASSERT_FALSE(arcs.empty());
+  fe.addEvents(EventVector(events.begin() + long(half), events.end()));
+  const size_t pending = fe.pendingWindows();
+  ASSERT_GE(pending, 3u);
+  std::vector<ArcEstimate> skipped;
+  EXPECT_EQ(fe.dropBacklog(1, &skipped), pending - 1);
+  ASSERT_EQ(skipped.size(), pending - 1);
+  EXPECT_EQ(fe.stats().windows_dropped, pending - 1);
+  for (const ArcEstimate& a : skipped) {
+    EXPECT_EQ(a.status, ArcStatus::kLost);
+    EXPECT_DOUBLE_EQ(a.omega, arcs.back().omega);  // the last yaw rate held
+    EXPECT_EQ(a.v, 0.0);                           // no /odom: the position holds
+  }
+  const std::vector<ArcEstimate> rest = fe.process();
+  ASSERT_EQ(rest.size(), 1u);
+  arcs.insert(arcs.end(), skipped.begin(), skipped.end());
+  arcs.insert(arcs.end(), rest.begin(), rest.end());
+  for (size_t i = 1; i < arcs.size(); ++i) EXPECT_EQ(arcs[i].t_start_ns, arcs[i - 1].t_end_ns) << i;
+  EXPECT_NEAR(rest.front().omega * kDegPerRad, w_deg, 1.0);
+}
+
 TEST(Frontend, CoarseToFineFullScanFindsATurnWithFewerEvaluations) {
   // A 0.3 s window of a 35 deg/s turn scanned around a previous yaw rate of 0: the peak lies
   // beyond the local scan, so the full range is scanned; coarse to fine must land on the same

@@ -137,7 +137,10 @@ class Frontend {
   /// Estimates every window that is complete. Returns the new arcs (also kept for the pose).
   std::vector<ArcEstimate> process();
   /// Skips every complete window but the newest `keep` (a node that falls behind); counted.
-  size_t dropBacklog(size_t keep);
+  /// Each skipped window becomes a kLost arc in `skipped` (if given) at the last yaw rate and the
+  /// window's /odom speed (0 without /odom: the dead reckoning holds its position), so whoever
+  /// follows the arcs sees no gap in time.
+  size_t dropBacklog(size_t keep, std::vector<ArcEstimate>* skipped = nullptr);
   /// A node that falls behind: the windows that follow vote max_events_per_volume / k events (at
   /// least 100 and 10 per time slice), about k times less work each; every window is still
   /// estimated (counted in windows_thinned). k = 1 restores the configured budget.
