@@ -368,10 +368,7 @@ bool EmvsMapper::closeKeyframe(EmvsKeyframe* kf) {
     if (tokens_ < 0.0) {
       thinned_ += kf_events_.size();
       ++keyframes_skipped_;
-      kf_events_.clear();
-      kf_slices_.clear();
-      counts_ = EmvsCounts();
-      active_ = false;
+      dropKeyframe();
       return false;
     }
     tokens_ -= double(kf_events_.size());
@@ -414,10 +411,7 @@ bool EmvsMapper::closeKeyframe(EmvsKeyframe* kf) {
   kf->t_kf_ns = ref.t_ns;
   kf->counts = counts_;
   extractKeyframe(*volume_, options_, T_odom_ref, kf);
-  kf_events_.clear();
-  kf_slices_.clear();
-  counts_ = EmvsCounts();
-  active_ = false;
+  dropKeyframe();
   ++num_keyframes_;
   return true;
 }
@@ -500,6 +494,10 @@ void EmvsMapper::reset() {
   pending_.clear();
   tokens_ = 0.0;
   t_tokens_ns_ = INT64_MIN;
+  dropKeyframe();
+}
+
+void EmvsMapper::dropKeyframe() {
   kf_events_.clear();
   kf_slices_.clear();
   counts_ = EmvsCounts();

@@ -28,8 +28,7 @@ EventVector subsampleEventsPerTimeSlice(const EventVector& events, int64_t t0_ns
     const int64_t edge = t0_ns + (t1_ns - t0_ns) * (b + 1) / bins;
     size_t end = begin;
     while (end < events.size() && (events[end].t_ns < edge || b == bins - 1)) ++end;
-    const EventVector slice(events.begin() + begin, events.begin() + end);
-    const EventVector kept = subsampleEvents(slice, per_bin, seed + uint64_t(b));
+    const EventVector kept = subsampleRange(events, begin, end, per_bin, seed + uint64_t(b));
     out.insert(out.end(), kept.begin(), kept.end());
     begin = end;
   }

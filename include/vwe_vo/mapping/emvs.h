@@ -168,6 +168,8 @@ class EmvsMapper {
   /// as thinned) when rate_limit_whole_keyframes leaves it out.
   bool closeKeyframe(EmvsKeyframe* keyframe);
   void startKeyframe(int64_t t_ns, const Pose3& T_odom_cam);
+  /// Forgets the keyframe being gathered (after it was voted, or left out).
+  void dropKeyframe();
   void addToKeyframe(const PixelEvent& e, int64_t t_pose_ns, const Pose3& T_odom_cam);
 
   EmvsOptions options_;
