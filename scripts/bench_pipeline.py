@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Pipeline benchmark: runs the front-end + back-end offline (vwe_vo_offline --no-map) on the
 simulated sequences and writes OUT/bench_pipeline.json with the real-time factor of each stage
-(processing time / data duration, on this machine), the objective evaluations, and the accuracy
+(processing time / data duration, on this machine), the objective evaluations, the time spent reading
+and decoding the bag (bag_decoding: rosbag's chunks and the EventArray conversion), and the accuracy
 against ground truth (vwe_vo_eval). The sequences are generated once (scripts/make_sequences.sh,
 cached). Timings are only meaningful on an otherwise idle machine: the load average at the start
 is recorded next to them. With --seeds 1,2,3 each sequence is also run with those event-subsampling
@@ -75,7 +76,10 @@ def run(bin_dir, seq, config, run_dir, repeat=1, extra_args=()):
     gt = os.path.join(seq_dir, "groundtruth.txt")
     ev = os.path.join(bin_dir, "vwe_vo_eval")
     imu = be.get("imu")
+    read_s = rep["input"]["read_s"]  # reading and decoding the bag (rosbag + EventArray -> events)
     return {"duration_s": round(rep["duration_s"], 2), "events": rep["events"],
+            "bag_decoding": {"read_s": round(read_s, 3),
+                             "events_per_s": round(rep["events"] / read_s) if read_s > 0 else None},
             **({"imu_yaw_rate_bias_deg_s": imu["yaw_rate_bias_deg_s"]} if imu else {}),
             # Of the fastest run: the stages' busy times, and the wall time of both together.
             "real_time_factor": {"frontend": round(fe["real_time_factor"], 3),
@@ -116,6 +120,9 @@ def main():
               % (seq, f["frontend_plus_backend"], f["runs"], f["frontend_plus_backend_median"], f["frontend"],
                  f["backend"], r["frontend"]["rot_rmse_deg_s"], r["backend"]["rot_rmse_deg_s"],
                  r["odom"]["rot_rmse_deg_s"]), flush=True)
+        print("[bench] pipeline %-12s bag decoding %.2f s for %d events (%.1f M events/s)"
+              % (seq, r["bag_decoding"]["read_s"], r["events"], (r["bag_decoding"]["events_per_s"] or 0) / 1e6),
+              flush=True)
         if a.imu:
             ri = run(bin_dir, seq, config_for(seq), os.path.join(a.out, "pipeline", seq + "_imu"), a.repeat,
                      ["--use-imu"])

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -52,6 +53,10 @@ void BackendOptions::validate(const std::string& section) const {
   if (yaw_scan_half_range_rad_s > 0 &&
       !(yaw_scan_step_rad_s > 0 && yaw_scan_step_rad_s <= yaw_scan_half_range_rad_s))
     fail("yaw_scan_step_rad_s must be in (0, yaw_scan_half_range_rad_s]");
+  if (!(arc_rate_prior_scale_deg_s >= 0 && arc_rate_prior_scale_deg_s <= 100))
+    fail("arc_rate_prior_scale_deg_s must be in [0, 100] deg/s (0: quadratic)");
+  if (!(outlier_arc_min_rad_s >= 0 && outlier_arc_min_rad_s <= 2))
+    fail("outlier_arc_min_rad_s must be in [0, 2] rad/s (0: off)");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
   if (!(output_rate_hz > 0 && output_rate_hz <= 10000))
     fail("output_rate_hz must be in (0, 10000] Hz");
@@ -187,8 +192,8 @@ double SpeedPrior::evaluate(Eigen::VectorXd* gradient) const {
 }
 
 ArcRatePrior::ArcRatePrior(std::shared_ptr<const BSpline> spline, int first_free,
-                           const std::vector<Arc>& arcs, double weight)
-    : spline_(std::move(spline)), first_free_(first_free), weight_(weight) {
+                           const std::vector<Arc>& arcs, double weight, double scale_deg_s)
+    : spline_(std::move(spline)), first_free_(first_free), weight_(weight), scale_(scale_deg_s) {
   for (const Arc& a : arcs) {
     if (!(a.u_end - a.u_start >= 1e-3) || !std::isfinite(a.omega)) continue;
     // The headings at both ends depend on the control points active there (or, in a
@@ -211,9 +216,11 @@ double ArcRatePrior::evaluate(Eigen::VectorXd* gradient) const {
     const double psi_b = spline_->planarPose(a.u_end, &c, gradient ? &jb : nullptr);
     const double dt = a.u_end - a.u_start;
     const double r = kDegPerRad * (wrapAngle(psi_b - psi_a) / dt - a.omega);
-    f += w * r * r;
+    // Cauchy: s^2 ln(1 + r^2 / s^2), r^2 for |r| << s, a bounded pull of an outlying arc.
+    const double q = scale_ > 0 ? 1.0 + r * r / (scale_ * scale_) : 1.0;
+    f += w * (scale_ > 0 ? scale_ * scale_ * std::log(q) : r * r);
     if (!gradient) continue;
-    const double g = 2 * w * r * kDegPerRad / dt;
+    const double g = 2 * w * r / q * kDegPerRad / dt;
     auto add = [&](const PlanarPoseJacobian& j, double sign) {
       for (int k = 0; k < j.size; ++k) {
         const int i = j.index[k] - 2 * first_free_;
@@ -241,6 +248,15 @@ Eigen::VectorXd MultiVolumeCost::params(const double* x) const {
 }
 
 bool MultiVolumeCost::Evaluate(const double* x, double* cost, double* gradient) const {
+  return evaluate(x, cost, gradient, true);
+}
+
+bool MultiVolumeCost::startCost(const double* x, double* cost) const {
+  return evaluate(x, cost, nullptr, false);
+}
+
+bool MultiVolumeCost::evaluate(const double* x, double* cost, double* gradient,
+                               bool deformation) const {
   Eigen::VectorXd g;
   const double f = objective_->evaluate(params(x), gradient ? &g : nullptr);
   if (!std::isfinite(f)) return false;
@@ -254,7 +270,7 @@ bool MultiVolumeCost::Evaluate(const double* x, double* cost, double* gradient) 
     *cost += prior->evaluate(gradient ? &gp : nullptr);  // the objective has set the control points
     if (gradient) Eigen::Map<Eigen::VectorXd>(gradient, params0_.size()) += step_scale_ * gp;
   }
-  if (deformation_weight_ > 0) {
+  if (deformation && deformation_weight_ > 0) {
     // Control point k (of m free) moves by x[2k..2k+1]; three fixed (zero) moves precede them.
     const int m = NumParameters() / 2;
     auto move = [&](int k) { return k < 0 ? Vec2(Vec2::Zero()) : Vec2(x[2 * k], x[2 * k + 1]); };
@@ -336,6 +352,8 @@ void Backend::reset() {
   first_free_ = 0;
   T_anchor_ = Pose3::Identity();
   spline_.reset();
+  fit_u_.clear();
+  overruled_until_ns_ = -1;
   if (imu_) imu_->reset();
   ++stats_.resets;
 }
@@ -458,7 +476,11 @@ void Backend::extendSpline(int64_t t_new_ns) {
     // Refit every control point whose support reaches past u_old (the unrefined part).
     while (first < n_old && knots[first + p + 1] <= u_old) ++first;
     first = std::min(first, n - 1);
-    T_anchor = fitAnchorOnSpline(*spline_, chain, processed_ns_, options_.window_s / 2);
+    // Fit over the last half window, but not across arcs a refinement overruled.
+    double span_s = options_.window_s / 2;
+    if (overruled_until_ns_ > processed_ns_ - secToNs(span_s))
+      span_s = std::max(0.0, dtSec(processed_ns_, overruled_until_ns_));
+    T_anchor = fitAnchorOnSpline(*spline_, chain, processed_ns_, span_s);
   }
   auto next = std::make_shared<BSpline>(p, knots, P, epoch);
   next->setStandstills(standstillIntervals(epoch));
@@ -480,6 +502,8 @@ void Backend::extendSpline(int64_t t_new_ns) {
   }
   fitControlPoints(next.get(), first, u, pos, options_.smoothness_weight);
   spline_ = next;
+  fit_first_ = first;
+  fit_u_ = std::move(u);
 }
 
 void Backend::refine(int64_t t_new_ns) {
@@ -545,7 +569,8 @@ void Backend::refine(int64_t t_new_ns) {
     const double ua = spline_->toSplineTime(a.t_start_ns), ub = spline_->toSplineTime(a.t_end_ns);
     if (ub > u_window && ub <= u_new + 1e-9) arcs.push_back({ua, ub, a.omega});
   }
-  const ArcRatePrior arc_prior(spline_, first_free, arcs, options_.arc_rate_prior_weight);
+  const ArcRatePrior arc_prior(spline_, first_free, arcs, options_.arc_rate_prior_weight,
+                               options_.arc_rate_prior_scale_deg_s);
   std::vector<const SplinePrior*> priors;
   if (options_.speed_prior_weight > 0) priors.push_back(&speed_prior);
   if (options_.arc_rate_prior_weight > 0) priors.push_back(&arc_prior);
@@ -559,8 +584,16 @@ void Backend::refine(int64_t t_new_ns) {
   for (double u : u_prior) mean_speed += spline_->velocity(u).norm() / double(u_prior.size());
   const double step_m =
       std::max(1e-3, options_.step_scale_per_span * mean_speed * options_.knot_spacing_s);
+  // The solver starts from the best of the scanned starts (scanStart): the deformation prior then
+  // measures the solver's moves from there.
+  Eigen::VectorXd start = params0;
+  {
+    const MultiVolumeCost probe(&objective, params0, step_m, f0, priors, 0.0);
+    const Eigen::VectorXd x_start = scanStart(probe, params0, first_free, step_m);
+    if (!x_start.isZero()) start = probe.params(x_start.data());
+  }
   auto* cost =
-      new MultiVolumeCost(&objective, params0, step_m, f0, priors, options_.deformation_weight);
+      new MultiVolumeCost(&objective, start, step_m, f0, priors, options_.deformation_weight);
   ceres::GradientProblem problem(cost);  // takes ownership
   ceres::GradientProblemSolver::Options so;
   so.line_search_direction_type = ceres::LBFGS;
@@ -571,7 +604,7 @@ void Backend::refine(int64_t t_new_ns) {
   so.parameter_tolerance = 1e-6;
   so.logging_type = ceres::SILENT;
   ceres::GradientProblemSolver::Summary summary;
-  Eigen::VectorXd x = scanYawOffset(*cost, params0, first_free, step_m);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(start.size());
   ceres::Solve(so, problem, x.data(), &summary);
   const Eigen::VectorXd params = cost->params(x.data());
   const double f1 = objective.evaluate(params, nullptr);  // the solver's last point: kept
@@ -582,7 +615,7 @@ void Backend::refine(int64_t t_new_ns) {
   // Accept what lowered the total cost (VWE and speed prior); anything else is reverted.
   if (!(summary.final_cost <= summary.initial_cost) || !std::isfinite(f1) || !params.allFinite()) {
     ++stats_.rejected;
-    objective.setParams(params0);  // restores the start
+    objective.setParams(start);  // restores the start
     stats_.last_gain = 1.0;
   } else {
     stats_.last_gain = f1 / f0;
@@ -592,68 +625,170 @@ void Backend::refine(int64_t t_new_ns) {
   if (gyro_prior) updateGyroBias(gyro_prior.get(), t_new_ns);
 }
 
-Eigen::VectorXd Backend::scanYawOffset(const MultiVolumeCost& cost, const Eigen::VectorXd& params0,
-                                       int first_free, double step_m) {
-  Eigen::VectorXd x0 = Eigen::VectorXd::Zero(params0.size());
-  const double range = options_.yaw_scan_half_range_rad_s;
-  if (!(range > 0)) return x0;
-  const int p = options_.degree, n = spline_->numControlPoints();
-  const std::vector<double>& knots = spline_->knots();
-  // The new part: past the previous refinement (the whole spline at the first).
-  const double u_old =
-      processed_ns_ >= 0 ? spline_->toSplineTime(processed_ns_) : spline_->validFrom();
-  int first_refit = first_free;
-  while (first_refit < n && knots[first_refit + p + 1] <= u_old) ++first_refit;
-  if (first_refit >= n || !(spline_->validTo() > u_old)) return x0;
-  // The spline as fit, sampled finely (kSub steps per fit sample, the extension's spacing):
-  // its steps past u_old are turned by offset * (u - u_old), and the turned path is refit.
-  constexpr int kSub = 5;
-  const double u_from = std::max(spline_->validFrom(), knots[first_refit]);
-  const double u_to = spline_->validTo();
-  const int samples =
-      std::max(2, int(std::ceil((u_to - u_from) / options_.init_sample_interval_s)) + 1);
-  const int fine = (samples - 1) * kSub + 1;
-  const size_t n_fine = static_cast<size_t>(fine), n_fit = static_cast<size_t>(samples);
-  std::vector<double> u(n_fine, 0.0), u_fit(n_fit, 0.0);
-  std::vector<Vec2> p_fine(n_fine);
-  for (int k = 0; k < fine; ++k) {
-    u[size_t(k)] = u_from + (u_to - u_from) * k / (fine - 1);
-    p_fine[size_t(k)] = spline_->position(u[size_t(k)]);
+/// The solver's start turned: the spline at the sample times of its extension's fit, its steps
+/// past u_old rotated by a heading offset h(u), refit the same way (the same free points and
+/// smoothness), as x of the cost (control-point moves in solver units). The fit is turned, not
+/// the dead reckoning it was fit to: the smoothed start moves less where h steps (measured on
+/// the street: turning the dead reckoning exactly replaced turn onsets by ramps more often).
+class Backend::TurnedStart {
+ public:
+  TurnedStart(const Backend& b, const Eigen::VectorXd& params0, int first_free, double step_m)
+      : b_(b), params0_(params0), first_free_(first_free), step_m_(step_m), trial_(*b.spline_) {
+    // The new part: past the previous refinement (the whole spline at the first).
+    u_old_ =
+        b.processed_ns_ >= 0 ? b.spline_->toSplineTime(b.processed_ns_) : b.spline_->validFrom();
+    // Only the free points move (at the first refinement the fit also placed the fixed first ones).
+    first_refit_ = std::max(b.fit_first_, first_free);
+    valid_ = b.fit_u_.size() >= 2 && first_refit_ < b.spline_->numControlPoints() &&
+             b.fit_u_.back() > u_old_;
+    for (double u : b.fit_u_) p_.push_back(b.spline_->position(u));
   }
-  for (int k = 0; k < samples; ++k) u_fit[size_t(k)] = u[size_t(k * kSub)];
-  BSpline trial = *spline_;
-  std::vector<Vec2> q(n_fine), q_fit(n_fit);
-  auto start_for = [&](double offset) {
-    q[0] = p_fine[0];
+  bool valid() const { return valid_; }
+  double uOld() const { return u_old_; }
+  /// x of the start whose heading past u_old is turned by heading(u) [rad].
+  template <typename Heading>
+  Eigen::VectorXd operator()(Heading&& heading) {
+    const std::vector<double>& u = b_.fit_u_;
+    const std::vector<Vec2>& p = p_;
+    std::vector<Vec2> q(p.size());
+    q[0] = p[0];
     for (size_t k = 1; k < q.size(); ++k) {
       const double um = 0.5 * (u[k - 1] + u[k]);
-      const Vec2 step = p_fine[k] - p_fine[k - 1];
-      q[k] = q[k - 1] + (um <= u_old ? step : Eigen::Rotation2Dd(offset * (um - u_old)) * step);
+      const Vec2 step = p[k] - p[k - 1];
+      q[k] = q[k - 1] + (um <= u_old_ ? step : Eigen::Rotation2Dd(heading(um)) * step);
     }
-    for (int k = 0; k < samples; ++k) q_fit[size_t(k)] = q[size_t(k * kSub)];
-    fitControlPoints(&trial, first_refit, u_fit, q_fit, options_.smoothness_weight);
-    Eigen::VectorXd x(params0.size());
-    for (int i = first_free; i < n; ++i)
-      x.segment<2>(2 * (i - first_free)) =
-          (trial.controlPoints()[size_t(i)] - params0.segment<2>(2 * (i - first_free))) / step_m;
+    fitControlPoints(&trial_, first_refit_, u, q, b_.options_.smoothness_weight);
+    Eigen::VectorXd x(params0_.size());
+    for (int i = first_free_; i < trial_.numControlPoints(); ++i)
+      x.segment<2>(2 * (i - first_free_)) =
+          (trial_.controlPoints()[size_t(i)] - params0_.segment<2>(2 * (i - first_free_))) /
+          step_m_;
     return x;
-  };
-  double best_cost = 0.0;
-  if (!cost.Evaluate(x0.data(), &best_cost, nullptr)) return x0;
-  Eigen::VectorXd best = x0;
-  double best_offset = 0.0;
-  const int steps = int(std::floor(range / options_.yaw_scan_step_rad_s + 1e-9));
-  for (int k = -steps; k <= steps; ++k) {
-    if (k == 0) continue;
-    const double offset = k * options_.yaw_scan_step_rad_s;
-    const Eigen::VectorXd x = start_for(offset);
-    double c = 0.0;
-    if (cost.Evaluate(x.data(), &c, nullptr) && c < best_cost)
-      best_cost = c, best = x, best_offset = offset;
   }
-  ++stats_.yaw_scans;
-  if (best_offset != 0.0) ++stats_.yaw_scans_moved;
-  stats_.yaw_scan_abs_sum_rad_s += std::abs(best_offset);
+
+ private:
+  const Backend& b_;
+  const Eigen::VectorXd& params0_;
+  int first_free_;
+  double step_m_;
+  BSpline trial_;
+  bool valid_ = false;
+  double u_old_ = 0.0;
+  int first_refit_ = 0;
+  std::vector<Vec2> p_;  // the spline at the fit's sample times
+};
+
+Eigen::VectorXd Backend::scanStart(const MultiVolumeCost& cost, const Eigen::VectorXd& params0,
+                                   int first_free, double step_m) {
+  Eigen::VectorXd best = Eigen::VectorXd::Zero(params0.size());
+  const double range = options_.yaw_scan_half_range_rad_s;
+  const double outlier = options_.outlier_arc_min_rad_s;
+  if (!(range > 0) && !(outlier > 0)) return best;
+  TurnedStart turned(*this, params0, first_free, step_m);
+  double best_cost = 0.0;
+  if (!turned.valid() || !cost.startCost(best.data(), &best_cost)) return best;
+  const double u_old = turned.uOld();
+  auto consider = [&](const Eigen::VectorXd& x) {
+    double c = 0.0;
+    const bool better = cost.startCost(x.data(), &c) && c < best_cost;
+    if (better) best_cost = c, best = x;
+    return better;
+  };
+  if (range > 0) {
+    double best_offset = 0.0;
+    const int steps = int(std::floor(range / options_.yaw_scan_step_rad_s + 1e-9));
+    for (int k = -steps; k <= steps; ++k) {
+      if (k == 0) continue;
+      const double offset = k * options_.yaw_scan_step_rad_s;
+      if (consider(turned([&](double u) { return offset * (u - u_old); }))) best_offset = offset;
+    }
+    ++stats_.yaw_scans;
+    if (best_offset != 0.0) ++stats_.yaw_scans_moved;
+    stats_.yaw_scan_abs_sum_rad_s += std::abs(best_offset);
+  }
+  if (outlier > 0) {
+    // A front-end arc (or the two halves of a split window) whose yaw rate stands out from the
+    // arcs around it is either a real change of the steering or a window whose scan found the
+    // wrong maximum (a flat, ambiguous scan). Its 0.3 s cannot tell; the back-end's volumes, with
+    // a second of parallax, can: each such run of new arcs is tried at the rates interpolated
+    // between its neighbouring arcs' (not the fit's: its smoothing spreads the outlier onto them),
+    // and the start of least cost kept (compared without the deformation prior, which measures
+    // the solver's moves from the start it is given). The solver alone stays in the basin of the
+    // arcs' rates.
+    struct Span {
+      double a, b, rate;
+      double middle() const { return 0.5 * (a + b); }
+    };
+    std::vector<Span> spans;
+    for (const ArcEstimate& arc : arcs_) {
+      const double a = spline_->toSplineTime(arc.t_start_ns);
+      const double b = spline_->toSplineTime(arc.t_end_ns);
+      if (!(b - a >= 1e-3) || b > spline_->validTo() + 1e-9 || a < spline_->validFrom()) continue;
+      if (!spans.empty() && a < spans.back().b - 1e-6) continue;  // overlapping (not expected)
+      spans.push_back({a, b, arc.omega});
+    }
+    // The heading the dead reckoning gains past u_old when the rates of arcs [j, k] change by
+    // delta: steps over the arcs' windows, or (interpolate_arc_rates) ramps between the middles,
+    // from zero at the neighbours' middles.
+    auto headingOffset = [&](size_t j, size_t k, const std::vector<double>& delta, double u) {
+      double h = 0.0;
+      if (!options_.interpolate_arc_rates) {
+        for (size_t i = j; i <= k; ++i) {
+          const double a = std::max(spans[i].a, u_old);
+          h += delta[i - j] * std::clamp(u - a, 0.0, std::max(0.0, spans[i].b - a));
+        }
+        return h;
+      }
+      // Piecewise-linear rate offset through (middle, delta): integral over [u_old, u].
+      std::vector<std::pair<double, double>> r{{spans[j - 1].middle(), 0.0}};
+      for (size_t i = j; i <= k; ++i) r.push_back({spans[i].middle(), delta[i - j]});
+      r.push_back({spans[k + 1].middle(), 0.0});
+      for (size_t i = 0; i + 1 < r.size(); ++i) {
+        const double x0 = std::max(r[i].first, u_old), x1 = std::min(r[i + 1].first, u);
+        if (!(x1 > x0)) continue;
+        const double slope = (r[i + 1].second - r[i].second) / (r[i + 1].first - r[i].first);
+        const double y0 = r[i].second + slope * (x0 - r[i].first);
+        const double y1 = r[i].second + slope * (x1 - r[i].first);
+        h += 0.5 * (y0 + y1) * (x1 - x0);
+      }
+      return h;
+    };
+    constexpr int kMaxRun = 2;  // a window and the two halves of a split window
+    size_t tried = 0;
+    double best_run_end = -1.0;  // spline time of the end of the run that won, if one did
+    for (size_t j = 1; j < spans.size(); ++j) {
+      if (spans[j].b <= u_old) continue;  // only the new part's arcs
+      // A run between two arcs (at the newest end a bump cannot be told from a turn's onset or
+      // end); the rates it is tried at: linear between the middles of the arcs around it.
+      for (size_t k = j; k + 1 < std::min(spans.size(), j + kMaxRun + 1); ++k) {
+        const Span &prev = spans[j - 1], &next = spans[k + 1];
+        // It stands out if each of its arcs lies beyond the range of the arcs around it by the
+        // threshold: a bump. A step between them (a turn's onset or end) is what the steering
+        // does, and the volumes' cost is no judge there: it prefers the ramp that starts a turn
+        // early (measured in process on street_long: ATE 0.07 -> 0.30 % when steps were tried).
+        const double lo = std::min(prev.rate, next.rate), hi = std::max(prev.rate, next.rate);
+        std::vector<double> delta;
+        double least_beyond = std::numeric_limits<double>::infinity();
+        for (size_t i = j; i <= k; ++i) {
+          const double r = spans[i].rate;
+          least_beyond = std::min(least_beyond, std::max(lo - r, r - hi));
+          const double s = (spans[i].middle() - prev.middle()) / (next.middle() - prev.middle());
+          delta.push_back(prev.rate + (next.rate - prev.rate) * s - r);
+        }
+        if (least_beyond < outlier) continue;
+        ++tried;
+        if (consider(turned([&](double u) { return headingOffset(j, k, delta, u); })))
+          best_run_end = spans[k].b;
+      }
+    }
+    stats_.outlier_runs_tried += tried;
+    if (best_run_end > 0.0) {
+      ++stats_.outlier_runs_replaced;
+      // The dead reckoning keeps the replaced rates: the next extension anchors it on the spline
+      // after them only (fitAnchorOnSpline would fit its kink).
+      overruled_until_ns_ = spline_->epochNs() + secToNs(best_run_end);
+    }
+  }
   return best;
 }
 

@@ -168,8 +168,10 @@ void fields(Archive& a, BackendOptions* o) {
   a("speed_prior_weight", &o->speed_prior_weight);
   a("deformation_weight", &o->deformation_weight);
   a("arc_rate_prior_weight", &o->arc_rate_prior_weight);
+  a("arc_rate_prior_scale_deg_s", &o->arc_rate_prior_scale_deg_s);
   a("yaw_scan_half_range_rad_s", &o->yaw_scan_half_range_rad_s);
   a("yaw_scan_step_rad_s", &o->yaw_scan_step_rad_s);
+  a("outlier_arc_min_rad_s", &o->outlier_arc_min_rad_s);
   a("output_rate_hz", &o->output_rate_hz);
   a("seed", &o->seed);
 }

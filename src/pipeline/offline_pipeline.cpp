@@ -394,6 +394,8 @@ nlohmann::json OfflinePipeline::report() const {
         {"mean_objective_gain", b.accepted > 0 ? b.gain_sum / double(b.accepted) : 0.0},
         {"yaw_scans", b.yaw_scans},
         {"yaw_scans_moved", b.yaw_scans_moved},
+        {"outlier_runs_tried", b.outlier_runs_tried},
+        {"outlier_runs_replaced", b.outlier_runs_replaced},
         {"mean_yaw_scan_offset_deg_s",
          b.yaw_scans > 0 ? b.yaw_scan_abs_sum_rad_s / double(b.yaw_scans) * 180.0 / M_PI : 0.0},
         {"arcs_held", b.arcs_held},

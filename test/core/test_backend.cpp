@@ -381,6 +381,26 @@ TEST(Backend, ArcRatePriorIsZeroOnItsOwnArcsAndItsGradientMatchesFiniteDifferenc
   test::expectPriorGradientMatchesCentralDifferences(spline.get(), first_free, prior, 0.01, 1e-5);
 }
 
+TEST(Backend, RobustArcRatePriorBoundsAnOutlyingArcAndItsGradientMatchesFiniteDifferences) {
+  auto spline = std::make_shared<BSpline>(*truthSpline());
+  const int first_free = 4;
+  std::vector<ArcRatePrior::Arc> arcs;
+  for (double u = 0.4; u + 0.3 <= kDuration; u += 0.3)
+    arcs.push_back({u, u + 0.3, wrapAngle(spline->heading(u + 0.3) - spline->heading(u)) / 0.3});
+  // One arc off by 20 deg/s (a scan that found the wrong maximum): the quadratic prior grows
+  // with its square, the Cauchy one (scale 2 deg/s) with its logarithm.
+  arcs[3].omega += 20.0 * kPi / 180.0;
+  const double w = 1e-2, s = 2.0;
+  const ArcRatePrior quadratic(spline, first_free, arcs, w);
+  const ArcRatePrior cauchy(spline, first_free, arcs, w, s);
+  ASSERT_EQ(cauchy.numArcs(), arcs.size());
+  const double per_arc = w / double(arcs.size());
+  EXPECT_NEAR(quadratic.evaluate(nullptr), per_arc * 20.0 * 20.0, 1e-9);
+  EXPECT_NEAR(cauchy.evaluate(nullptr), per_arc * s * s * std::log(1.0 + 20.0 * 20.0 / (s * s)),
+              1e-9);
+  test::expectPriorGradientMatchesCentralDifferences(spline.get(), first_free, cauchy, 0.01, 1e-5);
+}
+
 TEST(Backend, DeformationPriorGradientMatchesCentralFiniteDifferencesAndSparesQuadraticMoves) {
   // No volumes: the cost is the deformation prior alone (normaliser 1).
   auto spline = std::make_shared<BSpline>(*truthSpline());
@@ -505,6 +525,46 @@ TEST(Backend, YawRateScanStartsTheSolverNearerTheTruthThanBiasedArcs) {
   EXPECT_EQ(st_on.yaw_scans, st_on.updates);
   EXPECT_GE(st_on.yaw_scans_moved, 1u);
   EXPECT_LT(rpe_on, 0.8 * rpe_off);
+}
+
+// Outlying arcs: two consecutive windows whose scans found a wrong maximum (+15 deg/s, as a
+// flat scan on a straight road before a corner does) start the solver in the wrong basin, where
+// the gradient steps alone stay. Tried at the rates of their neighbours, the volumes' cost prefers
+// the truth; the arcs' prior (Cauchy, so the outliers' pull is bounded) does not hold them.
+TEST(Backend, OutlyingArcsAreReplacedByTheirNeighboursRatesWhereTheVolumesPreferIt) {
+  Scene sc;
+  const std::vector<ArcEstimate> true_arcs = truthArcs(*sc.truth, 0.0);
+  std::vector<ArcEstimate> arcs = true_arcs;
+  for (size_t i : {size_t(14), size_t(15)}) arcs[i].omega += 15.0 * kPi / 180;
+  auto rpeDeg = [&](const BackendOptions& o, BackendStats* stats,
+                    const std::vector<ArcEstimate>& arcs) {
+    Backend backend(o, sc.cam, testExtrinsics());
+    size_t e = 0;
+    for (const ArcEstimate& a : arcs) feed(&backend, sc.events, &e, a);
+    backend.finish();
+    *stats = backend.stats();
+    double sum = 0;
+    int pairs = 0;
+    for (double u = 0.0; u + 1.0 <= kDuration + 1e-9; u += 0.1, ++pairs)
+      sum += std::pow(headingChangeError(backend.spline(), *sc.truth, u, u + 1), 2);
+    return std::sqrt(sum / pairs) * 180 / kPi;
+  };
+  BackendOptions off = testOptions();
+  off.arc_rate_prior_weight = 1e-3;
+  off.arc_rate_prior_scale_deg_s = 2.0;
+  BackendOptions on = off;
+  on.outlier_arc_min_rad_s = 0.05;
+  BackendStats st_off, st_on, st_true;
+  const double rpe_off = rpeDeg(off, &st_off, arcs), rpe_on = rpeDeg(on, &st_on, arcs);
+  const double rpe_true = rpeDeg(on, &st_true, true_arcs);
+  std::printf(
+      "[backend] two arcs off by 15 deg/s: rotation RPE(1 s) %.2f deg without the outlier scan, "
+      "%.2f with (%zu runs tried, %zu refinements started from a replaced run); true arcs %.2f\n",
+      rpe_off, rpe_on, st_on.outlier_runs_tried, st_on.outlier_runs_replaced, rpe_true);
+  EXPECT_EQ(st_off.outlier_runs_tried, 0u);
+  EXPECT_GE(st_on.outlier_runs_replaced, 1u);
+  EXPECT_EQ(st_true.outlier_runs_replaced, 0u);  // nothing stands out of the true arcs
+  EXPECT_LT(rpe_on - rpe_true, 0.5 * (rpe_off - rpe_true));
 }
 
 // The odometry stream (/vwe/odom, tf odom -> base_link) of a back-end that refines biased arcs as
@@ -704,6 +764,12 @@ TEST(Backend, OptionsValidateNamesTheField) {
   o = BackendOptions();
   o.max_line_search_steps = 0;
   expectField(o, "max_line_search_steps");
+  o = BackendOptions();
+  o.arc_rate_prior_scale_deg_s = -1;
+  expectField(o, "arc_rate_prior_scale_deg_s");
+  o = BackendOptions();
+  o.outlier_arc_min_rad_s = std::nan("");
+  expectField(o, "outlier_arc_min_rad_s");
   o = BackendOptions();
   o.volume.pose_slice_s = -0.001;
   expectField(o, "pose_slice_s");

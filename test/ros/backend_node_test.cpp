@@ -49,6 +49,26 @@ class BackendRecorder {
   bool logged(const std::string& text, uint8_t level, double timeout_s = 3.0) {
     return test::waitForLog(mutex_, logs_, text, level, timeout_s);
   }
+  /// Log lines of either node so far (a mark for loggedSince).
+  size_t numLogs() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return logs_.size();
+  }
+  /// True if a line after the first `from` contains `text`.
+  bool loggedSince(size_t from, const std::string& text) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (size_t i = from; i < logs_.size(); ++i)
+      if (logs_[i].msg.find(text) != std::string::npos) return true;
+    return false;
+  }
+  /// The newest value of a counter of backend_node's input status line (-1: none yet).
+  long backendCounter(const std::string& kind, const std::string& key) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::vector<rosgraph_msgs::Log> own;
+    for (const rosgraph_msgs::Log& l : logs_)
+      if (l.name == "/backend_node") own.push_back(l);
+    return test::inputCounter(own, kind, key);
+  }
 
  private:
   void onTrajectory(const SplineTrajectory::ConstPtr& m) {
@@ -177,6 +197,54 @@ TEST_F(BackendNode, MultiSecondGapWithoutEventsResetsAndRecovers) {
   const nav_msgs::Odometry last = recorder->odometry().back();
   EXPECT_TRUE(std::isfinite(last.pose.pose.position.x));
   EXPECT_LT(poseFromMsg(last.pose.pose).translation().norm(), 2.0 * kV * 3.5);
+}
+
+// A burst of 10x the event rate (500 kev/s for 1 s, published as fast as possible) into
+// backend_node's small event queue (~max_queue_events 100000 in the .test): the queue stays
+// bounded, nothing is dropped, the back-end does not reset, refinements go on after it, and the
+// odometry stays continuous (no step longer than the true motion allows).
+TEST_F(BackendNode, ABurstAtTenTimesTheEventRateNeitherResetsNorBreaksTheOdometry) {
+  harness->stream(1.5);            // steady state first
+  ros::WallDuration(2.5).sleep();  // counters (cumulative over the suite) that include it
+  const long dropped_before = recorder->backendCounter("events", "dropped");
+  const long resets_before = recorder->backendCounter("timestamps", "resets");
+  ASSERT_GE(dropped_before, 0) << "no status line of backend_node";
+  const size_t logs_before = recorder->numLogs();
+  const size_t trajectories_before = recorder->trajectories().size();
+  StreamOptions burst;
+  burst.rate_factor = 10.0;
+  burst.burst = true;
+  const auto [b0, b1] = harness->stream(1.0, burst);
+  const auto [a0, a1] = harness->stream(3.0);
+  (void)b0, (void)a0;
+  ASSERT_TRUE(recorder->waitForTrajectories(trajectories_before + 2, 90.0))
+      << "no refinement after the burst";
+  // Odometry up to the data after the burst.
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(60.0);
+  while (ros::WallTime::now() < end &&
+         (recorder->odometry().empty() ||
+          toNs(recorder->odometry().back().header.stamp) < a1 - secToNs(1.5)))
+    ros::WallDuration(0.05).sleep();
+  ros::WallDuration(2.5).sleep();  // a status line (every 1 s) that counts all of it
+  EXPECT_FALSE(recorder->loggedSince(logs_before, "back-end reset"));
+  EXPECT_EQ(recorder->backendCounter("events", "dropped"), dropped_before);
+  EXPECT_EQ(recorder->backendCounter("timestamps", "resets"), resets_before);
+  const long max_queued = recorder->backendCounter("overload", "max_queued");
+  EXPECT_LE(max_queued, 100000 + 50000) << "queued events past the bound (+ one burst packet)";
+  // Continuous: between consecutive poses (20 Hz) at most the true motion plus a margin, across
+  // the burst and the refinements that followed it.
+  const std::vector<nav_msgs::Odometry> odom = recorder->odometry();
+  size_t checked = 0;
+  for (size_t i = 1; i < odom.size(); ++i) {
+    const int64_t t = toNs(odom[i].header.stamp), t_prev = toNs(odom[i - 1].header.stamp);
+    if (t < b1 - secToNs(2.0) || t <= t_prev) continue;
+    const double step = (poseFromMsg(odom[i].pose.pose).translation() -
+                         poseFromMsg(odom[i - 1].pose.pose).translation())
+                            .norm();
+    EXPECT_LE(step, 3.0 * kV * nsToSec(t - t_prev) + 0.005) << "jump at " << nsToSec(t) << " s";
+    ++checked;
+  }
+  EXPECT_GE(checked, 40u);
 }
 
 int main(int argc, char** argv) {

@@ -56,6 +56,7 @@ struct BackendOptions {
       1.0;  // third-difference prior on the control-point moves (0: off) [1]
   double arc_rate_prior_weight = 1e-2;  // the arcs' mean yaw rates as measurements, per (deg/s)^2
                                         // vs the normalised VWE (0: off) [1]
+  double arc_rate_prior_scale_deg_s = 0.0;  // Cauchy scale of its residuals (0: quadratic) [deg/s]
   // Before the gradient steps, the new part of the spline (past the previous refinement) is
   // turned by a constant yaw-rate offset from a grid of +-yaw_scan_half_range_rad_s in steps of
   // yaw_scan_step_rad_s, and the solver starts from the offset of least cost. Over the back-end's
@@ -65,10 +66,17 @@ struct BackendOptions {
   // turns (docs/method.md) (0: off) [rad/s].
   double yaw_scan_half_range_rad_s = 0.0;
   double yaw_scan_step_rad_s = 0.025;  // step of the scanned offsets [rad/s]
-  double max_backwards_jump_s = 0.5;   // arcs older than newest - this reset (YAML:
-                                       // input.max_backward_jump_s) [s]
-  double output_rate_hz = 20.0;        // rate of the sampled trajectory (backend.tum) [Hz]
-  uint64_t seed = 1;                   // subsampling seed
+  /// Before the solver, each run of one or two new arcs whose yaw rates all lie at least this
+  /// far beyond the range of the arcs before and after it (a bump, not a step) is tried at the
+  /// rates interpolated between those two, and the start of least cost kept: a window whose flat
+  /// scan found a wrong maximum is undone by the volumes' parallax, where the solver alone stays
+  /// in the arcs' basin. Needs a robust arc prior (arc_rate_prior_scale_deg_s) to ever replace
+  /// a run against it (0: off) [rad/s].
+  double outlier_arc_min_rad_s = 0.0;
+  double max_backwards_jump_s = 0.5;  // arcs older than newest - this reset (YAML:
+                                      // input.max_backward_jump_s) [s]
+  double output_rate_hz = 20.0;       // rate of the sampled trajectory (backend.tum) [Hz]
+  uint64_t seed = 1;                  // subsampling seed
   /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
   void validate(const std::string& section = "backend") const;
 };
@@ -94,6 +102,8 @@ struct BackendStats {
   size_t yaw_scans = 0;            // refinements that scanned a yaw-rate offset
   size_t yaw_scans_moved = 0;      // ... and started the solver away from the front-end's rates
   double yaw_scan_abs_sum_rad_s = 0.0;  // sum of |offset| chosen [rad/s]
+  size_t outlier_runs_tried = 0;        // runs of arcs tried at their neighbours' rates
+  size_t outlier_runs_replaced = 0;     // refinements that started from such a run replaced
   double last_gain = 0.0;               // objective ratio final / initial of the last refinement
 };
 
@@ -200,7 +210,9 @@ class SpeedPrior : public SplinePrior {
 /// deg/s. Each arc measures the heading change over its own window (steps at the windows' borders
 /// integrate to the same heading), so the prior holds the heading where the VWE says little (slow
 /// driving, where a tiny move of the control points turns the tangent) without pulling towards
-/// a dead reckoning's interpolation between the arcs.
+/// a dead reckoning's interpolation between the arcs. With a scale s > 0 each squared residual
+/// r^2 becomes s^2 ln(1 + r^2 / s^2) (Cauchy): the same for |r| << s, a bounded pull of an arc
+/// the volumes disagree with (a window whose scan found a wrong maximum).
 class ArcRatePrior : public SplinePrior {
  public:
   struct Arc {
@@ -209,7 +221,7 @@ class ArcRatePrior : public SplinePrior {
   };
   /// Arcs whose window the free control points do not reach, or shorter than 1 ms, are left out.
   ArcRatePrior(std::shared_ptr<const BSpline> spline, int first_free, const std::vector<Arc>& arcs,
-               double weight);
+               double weight, double scale_deg_s = 0.0);
   double evaluate(Eigen::VectorXd* gradient) const override;
   size_t numArcs() const { return arcs_.size(); }
 
@@ -218,6 +230,7 @@ class ArcRatePrior : public SplinePrior {
   int first_free_;
   std::vector<Arc> arcs_;
   double weight_;
+  double scale_;  // Cauchy scale [deg/s] (0: quadratic)
 };
 
 /// Ceres view of a MultiVolumeObjective: minimises -sum(C)/sum(C at x0) of the volumes'
@@ -233,6 +246,9 @@ class MultiVolumeCost : public ceres::FirstOrderFunction {
                   double normaliser, std::vector<const SplinePrior*> priors = {},
                   double deformation_weight = 0.0);
   bool Evaluate(const double* x, double* cost, double* gradient) const override;
+  /// The cost at x without the deformation prior (which measures moves from params0): what
+  /// compares starts of the solver that differ by more than a solver's move.
+  bool startCost(const double* x, double* cost) const;
   int NumParameters() const override { return static_cast<int>(params0_.size()); }
   Eigen::VectorXd params(const double* x) const;
 
@@ -242,6 +258,7 @@ class MultiVolumeCost : public ceres::FirstOrderFunction {
   double step_scale_, normaliser_;
   std::vector<const SplinePrior*> priors_;
   double deformation_weight_;
+  bool evaluate(const double* x, double* cost, double* gradient, bool deformation) const;
 };
 
 /// Least squares of the control points [first, n) of `spline` to positions p_odom at spline
@@ -339,10 +356,12 @@ class Backend {
   void extendSpline(int64_t t_new_ns);
   std::vector<BSpline::Interval> standstillIntervals(int64_t epoch_ns) const;
   void refine(int64_t t_new_ns);
-  /// The solver's start: the cost's best yaw-rate offset of the spline past the previous
-  /// refinement (yaw_scan_*), as x of `cost` (zero: the start as fit).
-  Eigen::VectorXd scanYawOffset(const MultiVolumeCost& cost, const Eigen::VectorXd& params0,
-                                int first_free, double step_m);
+  /// The solver's start, as x of `cost` (zero: the start as fit): the least cost of the fit, its
+  /// yaw-rate offsets past the previous refinement (yaw_scan_*) and its outlying arcs replaced
+  /// (outlier_arc_min_rad_s).
+  class TurnedStart;
+  Eigen::VectorXd scanStart(const MultiVolumeCost& cost, const Eigen::VectorXd& params0,
+                            int first_free, double step_m);
   // The IMU (backend_imu.cpp).
   struct Imu;
   std::unique_ptr<Imu> imu_;
@@ -369,6 +388,10 @@ class Backend {
   int first_free_ = 0;
   Pose3 T_anchor_ = Pose3::Identity();  // maps the dead reckoning onto the spline's odom
   std::shared_ptr<BSpline> spline_;
+  // The last extension fit control points fit_first_.. at the times fit_u_ (TurnedStart).
+  int fit_first_ = 0;
+  std::vector<double> fit_u_;
+  int64_t overruled_until_ns_ = -1;  // end of the newest arcs replaced by scanStart
   BackendStats stats_;
 };
 
