@@ -57,20 +57,6 @@ PipelineRun run(const std::string& name, const std::string& config_file = "vwe_v
   pipeline.finish();
   const Trajectory3 gt = trajectory.sample(secToNs(0.005));
   const Trajectory3 be = pipeline.backendTrajectory();
-  if (const char* d = getenv("VWE_DUMP")) {
-    auto dump = [](const std::string& f, const Trajectory3& tr) {
-      FILE* o = fopen(f.c_str(), "w");
-      for (const StampedPose& p : tr) {
-        Eigen::Quaterniond q(p.T.rotation());
-        fprintf(o, "%.6f %.6f %.6f %.6f %.6f %.6f %.6f %.6f\n", p.t_ns * 1e-9,
-                p.T.translation().x(), p.T.translation().y(), p.T.translation().z(), q.x(), q.y(),
-                q.z(), q.w());
-      }
-      fclose(o);
-    };
-    dump(std::string(d) + "/be.tum", be);
-    dump(std::string(d) + "/gt.tum", gt);
-  }
   PipelineRun r;
   for (const StampedPose& p : be) r.nonfinite_poses += !p.T.matrix().allFinite();
   const EvaluationOptions o;
