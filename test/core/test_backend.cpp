@@ -120,6 +120,22 @@ double headingChangeError(const BSpline& est, const BSpline& truth, double u0, d
   return std::abs(wrapAngle(d_est - d_true));
 }
 
+/// The refined heading's rotation RPE over 1 s pairs [deg] of a back-end fed the scene's events
+/// and these arcs (the pipeline's order), with its stats.
+double refinedRpeDeg(const Scene& sc, const std::vector<ArcEstimate>& arcs, const BackendOptions& o,
+                     BackendStats* stats) {
+  Backend backend(o, sc.cam, testExtrinsics());
+  size_t e = 0;
+  for (const ArcEstimate& a : arcs) feed(&backend, sc.events, &e, a);
+  backend.finish();
+  *stats = backend.stats();
+  double sum = 0;
+  int pairs = 0;
+  for (double u = 0.0; u + 1.0 <= kDuration + 1e-9; u += 0.1, ++pairs)
+    sum += std::pow(headingChangeError(backend.spline(), *sc.truth, u, u + 1), 2);
+  return std::sqrt(sum / pairs) * 180 / kPi;
+}
+
 /// The multi-volume objective by brute force in double precision, independent of the voting
 /// kernel: rays from the spline, bilinear votes into a dense double grid with the volume's
 /// geometry, the contrast per volume (VolumeOptions::contrast), summed. The kernel votes in
@@ -497,25 +513,14 @@ TEST(Backend, RefinementReducesTheRotationErrorOfBiasedArcs) {
 TEST(Backend, YawRateScanStartsTheSolverNearerTheTruthThanBiasedArcs) {
   Scene sc;
   const std::vector<ArcEstimate> arcs = truthArcs(*sc.truth, 6.0 * kPi / 180);
-  auto rpeDeg = [&](const BackendOptions& o, BackendStats* stats) {
-    Backend backend(o, sc.cam, testExtrinsics());
-    size_t e = 0;
-    for (const ArcEstimate& a : arcs) feed(&backend, sc.events, &e, a);
-    backend.finish();
-    *stats = backend.stats();
-    double sum = 0;
-    int pairs = 0;
-    for (double u = 0.0; u + 1.0 <= kDuration + 1e-9; u += 0.1, ++pairs)
-      sum += std::pow(headingChangeError(backend.spline(), *sc.truth, u, u + 1), 2);
-    return std::sqrt(sum / pairs) * 180 / kPi;
-  };
   BackendOptions off = testOptions();
   off.yaw_scan_half_range_rad_s = 0.0;
   BackendOptions on = testOptions();
   on.yaw_scan_half_range_rad_s = 0.15;
   on.yaw_scan_step_rad_s = 0.025;
   BackendStats st_off, st_on;
-  const double rpe_off = rpeDeg(off, &st_off), rpe_on = rpeDeg(on, &st_on);
+  const double rpe_off = refinedRpeDeg(sc, arcs, off, &st_off);
+  const double rpe_on = refinedRpeDeg(sc, arcs, on, &st_on);
   std::printf(
       "[backend] 6 deg/s biased arcs: rotation RPE(1 s) %.2f deg without the scan, %.2f with "
       "(%zu of %zu scans moved, mean |offset| %.2f deg/s)\n",
@@ -536,27 +541,15 @@ TEST(Backend, OutlyingArcsAreReplacedByTheirNeighboursRatesWhereTheVolumesPrefer
   const std::vector<ArcEstimate> true_arcs = truthArcs(*sc.truth, 0.0);
   std::vector<ArcEstimate> arcs = true_arcs;
   for (size_t i : {size_t(14), size_t(15)}) arcs[i].omega += 15.0 * kPi / 180;
-  auto rpeDeg = [&](const BackendOptions& o, BackendStats* stats,
-                    const std::vector<ArcEstimate>& arcs) {
-    Backend backend(o, sc.cam, testExtrinsics());
-    size_t e = 0;
-    for (const ArcEstimate& a : arcs) feed(&backend, sc.events, &e, a);
-    backend.finish();
-    *stats = backend.stats();
-    double sum = 0;
-    int pairs = 0;
-    for (double u = 0.0; u + 1.0 <= kDuration + 1e-9; u += 0.1, ++pairs)
-      sum += std::pow(headingChangeError(backend.spline(), *sc.truth, u, u + 1), 2);
-    return std::sqrt(sum / pairs) * 180 / kPi;
-  };
   BackendOptions off = testOptions();
   off.arc_rate_prior_weight = 1e-3;
   off.arc_rate_prior_scale_deg_s = 2.0;
   BackendOptions on = off;
   on.outlier_arc_min_rad_s = 0.05;
   BackendStats st_off, st_on, st_true;
-  const double rpe_off = rpeDeg(off, &st_off, arcs), rpe_on = rpeDeg(on, &st_on, arcs);
-  const double rpe_true = rpeDeg(on, &st_true, true_arcs);
+  const double rpe_off = refinedRpeDeg(sc, arcs, off, &st_off);
+  const double rpe_on = refinedRpeDeg(sc, arcs, on, &st_on);
+  const double rpe_true = refinedRpeDeg(sc, true_arcs, on, &st_true);
   std::printf(
       "[backend] two arcs off by 15 deg/s: rotation RPE(1 s) %.2f deg without the outlier scan, "
       "%.2f with (%zu runs tried, %zu refinements started from a replaced run); true arcs %.2f\n",
