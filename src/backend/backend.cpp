@@ -755,7 +755,8 @@ Eigen::VectorXd Backend::scanStart(const MultiVolumeCost& cost, const Eigen::Vec
     };
     constexpr int kMaxRun = 2;  // a window and the two halves of a split window
     size_t tried = 0;
-    double best_run_end = -1.0;  // spline time of the end of the run that won, if one did
+    bool replaced = false;
+    double best_run_end = 0.0;  // spline time of the end of the run that won
     for (size_t j = 1; j < spans.size(); ++j) {
       if (spans[j].b <= u_old) continue;  // only the new part's arcs
       // A run between two arcs (at the newest end a bump cannot be told from a turn's onset or
@@ -778,11 +779,11 @@ Eigen::VectorXd Backend::scanStart(const MultiVolumeCost& cost, const Eigen::Vec
         if (least_beyond < outlier) continue;
         ++tried;
         if (consider(turned([&](double u) { return headingOffset(j, k, delta, u); })))
-          best_run_end = spans[k].b;
+          replaced = true, best_run_end = spans[k].b;
       }
     }
     stats_.outlier_runs_tried += tried;
-    if (best_run_end > 0.0) {
+    if (replaced) {
       ++stats_.outlier_runs_replaced;
       // The dead reckoning keeps the replaced rates: the next extension anchors it on the spline
       // after them only (fitAnchorOnSpline would fit its kink).
