@@ -348,9 +348,8 @@ void Backend::reset() {
   dead_reckoning_.reset();
   has_good_rates_ = false;
   arcs_.clear();
-  newest_arc_ns_ = processed_ns_ = -1;
+  newest_arc_ns_ = processed_ns_ = spline_final_ns_ = -1;
   first_free_ = 0;
-  T_anchor_ = Pose3::Identity();
   spline_.reset();
   fit_u_.clear();
   overruled_until_ns_ = -1;
@@ -437,8 +436,7 @@ void Backend::update(int64_t t_new_ns) {
   extendSpline(t_new_ns);
   refine(t_new_ns);
   processed_ns_ = t_new_ns;
-  T_anchor_ = anchorOnSplinePose(*spline_, spline_->toSplineTime(t_new_ns),
-                                 dead_reckoning_->steps().T_odom_base(t_new_ns));
+  spline_final_ns_ = finalUntil();
   ++stats_.updates;
   // Bounded memory: events before the next window cannot be used again.
   const int64_t keep_from = t_new_ns - secToNs(options_.window_s + options_.tau2_s);
@@ -793,6 +791,11 @@ Eigen::VectorXd Backend::scanStart(const MultiVolumeCost& cost, const Eigen::Vec
   return best;
 }
 
+int64_t Backend::finalUntil() const {
+  if (!dead_reckoning_) return -1;
+  return std::min(newest_arc_ns_, dead_reckoning_->ramped().endTime());
+}
+
 int64_t Backend::oldestArcTime() const {
   return dead_reckoning_ ? dead_reckoning_->startTime() : -1;
 }
@@ -807,9 +810,16 @@ bool Backend::planarPoseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* 
   if (!dead_reckoning_ || t_ns < dead_reckoning_->startTime() || t_ns > newest_arc_ns_)
     return false;
   constexpr int64_t kRateStep_ns = 20000000;  // central differences for the rates [ns]
+  // Beyond the spline, the dead reckoning anchored on it at processedUntil(); anchored at each
+  // call, because a ramp's pose there changes until the next arc's middle has arrived.
+  const ArcChain& chain = dead_reckoning_->ramped();
+  Pose3 T_anchor = Pose3::Identity();
+  if (spline_)
+    T_anchor = anchorOnSplinePose(*spline_, spline_->toSplineTime(spline_final_ns_),
+                                  chain.T_odom_base(spline_final_ns_));
   auto pose = [&](int64_t t) {
-    if (spline_ && t <= processed_ns_) return spline_->T_odom_base(spline_->toSplineTime(t));
-    return Pose3(T_anchor_ * dead_reckoning_->steps().T_odom_base(t));
+    if (spline_ && t <= spline_final_ns_) return spline_->T_odom_base(spline_->toSplineTime(t));
+    return Pose3(T_anchor * chain.T_odom_base(t));
   };
   *T_odom_base = pose(t_ns);
   if (v || omega) {

@@ -640,7 +640,7 @@ static ArcEstimate windowArc(int k, double omega, ArcStatus status = ArcStatus::
   return a;
 }
 
-TEST(Backend, InitialGuessRampsTheRatesBetweenTheArcsMiddlesOdometryKeepsEachArcsTurn) {
+TEST(Backend, InitialGuessAndOdometryFollowTheArcsRateRuleUpToTheirFinalPoses) {
   // Arcs of 0.3 s whose yaw rates step 0 -> 0.6 -> 0.6 -> 0 -> -0.3 rad/s: between the middles
   // of two arcs the rates ramp, as integrateArcs() (the front-end's trajectory) does; steps at
   // the window borders give the same heading at the middles but not in between.
@@ -654,27 +654,36 @@ TEST(Backend, InitialGuessRampsTheRatesBetweenTheArcsMiddlesOdometryKeepsEachArc
     o.interpolate_arc_rates = interpolate;
     Backend b(o, cam, testExtrinsics());
     for (const ArcEstimate& a : arcs) b.addArc(a);  // no process(): no spline yet
-    double max_heading_error = 0.0;
+    double max_heading_error = 0.0, max_odometry_error = 0.0;
     for (const auto& sample : ramp) {
       if (sample.t_ns > arcs.back().t_ref_ns) break;
       max_heading_error = std::max(max_heading_error,
                                    std::abs(wrapAngle(yawOf(b.initialGuess(sample.t_ns).linear()) -
                                                       yawOf(sample.T.linear()))));
-    }
-    if (interpolate)
-      EXPECT_LT(max_heading_error, 1e-3) << "ramps between the middles (in 8 constant pieces)";
-    else
-      EXPECT_GT(max_heading_error, 0.01)
-          << "steps at the window borders";  // 0.6 rad/s x 0.15 s / 4
-    // The odometry (poseAt beyond the spline) takes each arc's rates over its own window: at
-    // every window border the heading is the sum of the arcs' turns so far, so a pose published
-    // before the next arc arrives stays right.
-    double heading = 0.0;
-    for (const ArcEstimate& a : arcs) {
-      heading += a.omega * dtSec(a.t_end_ns, a.t_start_ns);
       Pose3 T;
-      ASSERT_TRUE(b.poseAt(a.t_end_ns, &T, nullptr, nullptr));
-      EXPECT_NEAR(wrapAngle(yawOf(T.linear()) - heading), 0.0, 1e-9);
+      ASSERT_TRUE(b.poseAt(sample.t_ns, &T, nullptr, nullptr));
+      max_odometry_error = std::max(
+          max_odometry_error, std::abs(wrapAngle(yawOf(T.linear()) - yawOf(sample.T.linear()))));
+    }
+    if (interpolate) {
+      // The odometry (poseAt beyond the spline) follows the same ramps, up to the newest arc's
+      // middle: the ramp after it is not known before the next arc.
+      EXPECT_LT(max_heading_error, 1e-3) << "ramps between the middles (in 8 constant pieces)";
+      EXPECT_LT(max_odometry_error, 1e-3);
+      EXPECT_EQ(b.finalUntil(), arcs.back().t_ref_ns);
+    } else {
+      EXPECT_GT(max_heading_error, 0.01) << "steps at the window borders";  // 0.6 x 0.15 / 4
+      EXPECT_GT(max_odometry_error, 0.01);
+      EXPECT_EQ(b.finalUntil(), arcs.back().t_end_ns);
+      // Each arc's rates over its own window: at every window border the heading is the sum of
+      // the arcs' turns so far, so a pose published before the next arc arrives stays right.
+      double heading = 0.0;
+      for (const ArcEstimate& a : arcs) {
+        heading += a.omega * dtSec(a.t_end_ns, a.t_start_ns);
+        Pose3 T;
+        ASSERT_TRUE(b.poseAt(a.t_end_ns, &T, nullptr, nullptr));
+        EXPECT_NEAR(wrapAngle(yawOf(T.linear()) - heading), 0.0, 1e-9);
+      }
     }
   }
 }
@@ -682,9 +691,11 @@ TEST(Backend, InitialGuessRampsTheRatesBetweenTheArcsMiddlesOdometryKeepsEachArc
 TEST(Backend, UnmeasuredArcsAreDeadReckonedAtTheLastMeasuredRates) {
   // OK (0.3 rad/s), LOST with a wild yaw rate, LOW_EVENTS with NaN, OK again: the two without a
   // motion estimate take the last measured rates (as backend_node warns), and only the OK ones
-  // count as yaw-rate measurements.
+  // count as yaw-rate measurements. With steps each arc's turn ends at its window's end.
   const CameraModel cam(testCalibration());
-  Backend b(testOptions(), cam, testExtrinsics());
+  BackendOptions o = testOptions();
+  o.interpolate_arc_rates = false;
+  Backend b(o, cam, testExtrinsics());
   const ArcStatus status[] = {ArcStatus::kOk, ArcStatus::kLost, ArcStatus::kLowEvents,
                               ArcStatus::kOk};
   const double omega[] = {0.3, 5.0, std::nan(""), 0.1};

@@ -2,6 +2,7 @@
 // batch, continuous odometry) and the front-end following the back-end's spline.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 #include <string>
 #include <vector>
@@ -47,8 +48,10 @@ struct Rig {
   std::vector<size_t> refinements;  // merged intervals of each
   std::vector<BackendDriver::ResetCause> resets;
 
-  explicit Rig(BackendDriverOptions o = BackendDriverOptions()) {
+  // Steps (car.yaml) unless told: the odometry then reaches each newest arc's end.
+  explicit Rig(BackendDriverOptions o = BackendDriverOptions(), bool ramps = false) {
     options.volume.num_planes = 10;
+    options.interpolate_arc_rates = ramps;
     backend = std::make_unique<Backend>(options, cam, extrinsics());
     BackendDriver::Callbacks cb;
     cb.odometry = [this](int64_t t, const Pose3& T, double, double) { odometry.push_back({t, T}); };
@@ -73,6 +76,33 @@ TEST(BackendDriver, RefinesOncePerUpdateIntervalAndPublishesTheOdometryFirst) {
     EXPECT_EQ(r.odometry[i].t_ns, kEpoch + int64_t(i) * kArcNs);
   // Each odometry pose follows the arcs' turn: 0.2 rad/s.
   EXPECT_NEAR(yawOf(r.odometry[20].T.linear()), 0.2 * 1.0, 1e-6);
+}
+
+TEST(BackendDriver, WithRampedRatesTheOdometryFollowsTheRampsUpToTheNewestArcsMiddle) {
+  // Rates stepping every 4 arcs (0.2 s): with interpolate_arc_rates (vwe_vo.yaml) the odometry
+  // turns as the ramps between the arcs' middles and goes out up to the newest middle only, so
+  // no pose it published would have turned otherwise once the next arc arrived.
+  Rig r(BackendDriverOptions(), true);
+  std::vector<ArcEstimate> arcs;
+  for (int k = 0; k < 18; ++k) {  // 0.9 s: before the first refinement (1 s)
+    arcs.push_back(arcAt(kEpoch + k * kArcNs, (k / 4) % 2 ? 0.6 : -0.2));
+    r.driver->addArc(arcs.back());
+    ASSERT_FALSE(r.odometry.empty());
+    EXPECT_LE(r.odometry.back().t_ns, arcs.back().t_ref_ns);
+    EXPECT_GT(r.odometry.back().t_ns, arcs.back().t_ref_ns - kArcNs);
+  }
+  ASSERT_TRUE(r.refinements.empty());
+  const Trajectory3 ramp = integrateArcs(arcs, secToNs(0.001));
+  ASSERT_EQ(r.odometry.size(), 18u);  // every 50 ms from the first arc's start to 17.5 arcs
+  for (const auto& pose : r.odometry) {
+    const auto it = std::lower_bound(ramp.begin(), ramp.end(), pose.t_ns,
+                                     [](const StampedPose& p, int64_t t) { return p.t_ns < t; });
+    // The ramp has a pose at the end of every 1 ms step; the first arc's start is the identity.
+    const bool start = pose.t_ns == arcs.front().t_start_ns;
+    ASSERT_TRUE(start || (it != ramp.end() && it->t_ns == pose.t_ns));
+    const double ramp_yaw = start ? 0.0 : yawOf(it->T.linear());
+    EXPECT_NEAR(wrapAngle(yawOf(pose.T.linear()) - ramp_yaw), 0.0, 1e-3) << nsToSec(pose.t_ns);
+  }
 }
 
 TEST(BackendDriver, ABatchThatKeepsUpGivesTheSameSplineAndABatchBehindMergesRefinements) {

@@ -16,6 +16,7 @@
 #include <tf2_ros/transform_listener.h>
 #include <xmlrpcpp/XmlRpcClient.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -32,16 +33,19 @@ using namespace vwe_vo::test;
 namespace {
 
 constexpr double kBagDurationS = 6.0;
-constexpr char kManager[] = "/vwe_vo_manager";  // launch/nodes.launch's nodelet manager
+constexpr char kManager[] = "/vwe_vo_manager";         // launch/nodes.launch's nodelet manager
+constexpr double kOfflineStartsS[] = {0.0, 0.1, 0.2};  // a third and two thirds of a window
 
 /// The bag and the offline runner's results on it, made once for both ways of running.
 struct Bag {
   std::unique_ptr<TempDir> dir;
   SimulatedBag bag;
-  Trajectory3 offline_backend;   // vwe_vo_offline's backend.tum of the same bag
-  Trajectory3 offline_frontend;  // ... and its frontend.tum
-  Trajectory3 offline_odom;      // ... and its odom.tum (what backend_node publishes, offline)
-  std::string error;             // why the bag or the offline run could not be made
+  // vwe_vo_offline on the same bag from each of kOfflineStartsS: a live replay's windows fall
+  // wherever its first packet does, and the estimate depends on where the 0.3 s windows fall.
+  std::vector<Trajectory3> offline_backend;   // backend.tum
+  std::vector<Trajectory3> offline_frontend;  // frontend.tum
+  std::vector<Trajectory3> offline_odom;      // odom.tum (what backend_node publishes, offline)
+  std::string error;                          // why the bag or the offline run could not be made
 };
 
 /// One inbound connection of a node (the slave API's getBusInfo).
@@ -66,16 +70,26 @@ struct Replay {
 };
 
 void runOffline(Bag* r) {
-  const std::string out = r->dir->path() + "/offline", log = r->dir->path() + "/offline.log";
-  const int rc = runToEnd(
-      {toolPath("vwe_vo_offline"), "--bag", r->bag.bag_path, "--out", out, "--no-map", "--quiet"},
-      log, 300.0);
-  if (rc != 0)
-    throw std::runtime_error("vwe_vo_offline exited with " + std::to_string(rc) + ":\n" +
-                             tailOf(log));
-  r->offline_backend = readTum(out + "/backend.tum");
-  r->offline_frontend = readTum(out + "/frontend.tum");
-  r->offline_odom = readTum(out + "/odom.tum");
+  for (const double start_s : kOfflineStartsS) {
+    const std::string name = "/offline_" + std::to_string(int(std::lround(1000 * start_s)));
+    const std::string out = r->dir->path() + name, log = out + ".log";
+    const int rc = runToEnd({toolPath("vwe_vo_offline"), "--bag", r->bag.bag_path, "--out", out,
+                             "--no-map", "--quiet", "--start", std::to_string(start_s)},
+                            log, 300.0);
+    if (rc != 0)
+      throw std::runtime_error("vwe_vo_offline exited with " + std::to_string(rc) + ":\n" +
+                               tailOf(log));
+    r->offline_backend.push_back(readTum(out + "/backend.tum"));
+    r->offline_frontend.push_back(readTum(out + "/frontend.tum"));
+    r->offline_odom.push_back(readTum(out + "/odom.tum"));
+  }
+}
+
+/// The largest rotation RMSE over 1 s of the offline runs (their window phases).
+double worstRotationRmseDegS(const Trajectory3& gt, const std::vector<Trajectory3>& runs) {
+  double worst = 0.0;
+  for (const Trajectory3& run : runs) worst = std::max(worst, rotationRmseDegS(gt, run));
+  return worst;
 }
 
 /// Nodes, publishers of `published` and subscribers of `subscribed` (the master's getSystemState).
@@ -299,9 +313,9 @@ TEST_P(ReplayLaunch, OdometryAndPathAsAccurateAsTheOfflineRunner) {
   const Trajectory3 gt = trajectoryOf(replay->gt);
   const Trajectory3 live_odom = trajectoryOf(replay->odoms);
   const Trajectory3 live_path = trajectoryOf(replay->paths.back().poses);
-  const double offline_fe = rotationRmseDegS(gt, replay->bag->offline_frontend);
-  const double offline_be = rotationRmseDegS(gt, replay->bag->offline_backend);
-  const double offline_odom = rotationRmseDegS(gt, replay->bag->offline_odom);
+  const double offline_fe = worstRotationRmseDegS(gt, replay->bag->offline_frontend);
+  const double offline_be = worstRotationRmseDegS(gt, replay->bag->offline_backend);
+  const double offline_odom = worstRotationRmseDegS(gt, replay->bag->offline_odom);
   double odom_rmse = 0, path_rmse = 0;
   ASSERT_NO_THROW(odom_rmse = rotationRmseDegS(gt, live_odom));
   ASSERT_NO_THROW(path_rmse = rotationRmseDegS(gt, live_path));
@@ -312,14 +326,16 @@ TEST_P(ReplayLaunch, OdometryAndPathAsAccurateAsTheOfflineRunner) {
   RecordProperty("offline_odom_rot_rmse_deg_s", std::to_string(offline_odom));
   std::printf(
       "rotation RMSE over 1 s: live /vwe/odom %.3f vs offline odom %.3f (front-end %.3f) deg/s; "
-      "live /vwe/path %.3f vs offline back-end %.3f deg/s\n",
+      "live /vwe/path %.3f vs offline back-end %.3f deg/s (offline: the worst of its starts)\n",
       odom_rmse, offline_odom, offline_fe, path_rmse, offline_be);
   // The references themselves track the 25 deg/s circle (README: 0.27-0.28 deg/s on indoor_circle).
   EXPECT_LT(offline_fe, 1.5);
   EXPECT_LT(offline_be, 1.5);
   EXPECT_LT(offline_odom, 1.5);
-  EXPECT_LE(odom_rmse, 1.35 * offline_odom);
-  EXPECT_LE(path_rmse, 1.35 * offline_be);
+  // The offline runs from three starts span the window phases (on this 6 s circle 0.22-0.32
+  // deg/s for odom.tum); the live system's windows fall at one more.
+  EXPECT_LE(odom_rmse, 1.2 * offline_odom);
+  EXPECT_LE(path_rmse, 1.2 * offline_be);
 }
 
 // The stages share one process with nodelets, and each has its own without.

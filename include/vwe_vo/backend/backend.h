@@ -326,13 +326,19 @@ class Backend {
   /// Start of the first arc and end of the newest arc since the last reset (-1: none yet).
   int64_t oldestArcTime() const;
   int64_t newestArcTime() const { return newest_arc_ns_; }
+  /// Newest time up to which poseAt() will not change when later arcs arrive (unless a
+  /// refinement moves it): the newest arc's end with steps, its middle with interpolate_arc_rates
+  /// (the ramp to the next arc's middle is not known before that arc). -1 without arcs.
+  int64_t finalUntil() const;
   /// First control point the last refinement optimised (the ones before it are fixed).
   int firstFree() const { return first_free_; }
   /// Pose of base_link in odom at t_ns with its speed [m/s] and yaw rate [rad/s] (may be null):
   /// on the refined spline up to processedUntil(), beyond it (up to the newest arc) the arcs'
-  /// dead reckoning (each arc's rates over its own window) anchored on the spline at
-  /// processedUntil(); before the first refinement that dead reckoning alone. False if t_ns is
-  /// outside [first arc, newest arc].
+  /// dead reckoning anchored on the spline at processedUntil(); before the first refinement that
+  /// dead reckoning alone. The dead reckoning follows the same rule as the spline's fit: with
+  /// interpolate_arc_rates the rates ramp between the arcs' middles (poses up to finalUntil()
+  /// are final, the ones after it extrapolate the newest arc), else each arc's rates over its own
+  /// window. False if t_ns is outside [first arc, newest arc].
   /// With the IMU (enableImu) the pose is composed with the estimated tilt (tiltAt); the rates
   /// are the planar pose's.
   bool poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const;
@@ -377,16 +383,19 @@ class Backend {
   VweObjectivePool objectives_;
   EventBuffer buffer_;
   std::vector<std::pair<int64_t, int64_t>> standstills_ns_;  // merged STANDSTILL arcs
-  // The arcs' dead reckoning since the last reset: ramped() is what the spline's fit starts from,
-  // steps() is poseAt() beyond the spline (a pose published there is final, ContinuousOdometry).
+  // The arcs' dead reckoning since the last reset: ramped() is what the spline's fit starts from
+  // and poseAt() beyond the spline (up to finalUntil() a pose published there is final,
+  // ContinuousOdometry).
   std::unique_ptr<ArcDeadReckoning> dead_reckoning_;
   std::deque<ArcEstimate> arcs_;  // measured (OK) arcs of the last window (arc_rate_prior_weight)
   bool has_good_rates_ = false;   // the newest measured arc's rates (held through unmeasured arcs)
   double good_omega_ = 0.0, good_v_ = 0.0;
   int64_t newest_arc_ns_ = -1;
   int64_t processed_ns_ = -1;
+  // poseAt() follows the spline up to here, finalUntil() at the last refinement: beyond it the
+  // spline's end was fit to poses that were not final, and the volumes barely hold it.
+  int64_t spline_final_ns_ = -1;
   int first_free_ = 0;
-  Pose3 T_anchor_ = Pose3::Identity();  // maps the dead reckoning onto the spline's odom
   std::shared_ptr<BSpline> spline_;
   // The last extension fit control points fit_first_.. at the times fit_u_ (TurnedStart).
   int fit_first_ = 0;
@@ -406,12 +415,12 @@ class ContinuousOdometry {
   /// null). False if the back-end has no pose at t_ns.
   bool next(const Backend& backend, int64_t t_ns, Pose3* T_odom_base, double* v, double* omega);
   /// The stream backend_node publishes (and vwe_vo_offline's odom.tum): next() every step_ns
-  /// from the back-end's first arc up to its newest, each time once, as
+  /// from the back-end's first arc up to its finalUntil(), each time once, as
   /// emit(t_ns, T_odom_base, v, omega). Call it on every new arc, before the refinement.
   template <typename Emit>
   void advance(const Backend& backend, int64_t step_ns, Emit&& emit) {
     if (next_ns_ < 0) next_ns_ = backend.oldestArcTime();
-    for (; next_ns_ >= 0 && next_ns_ <= backend.newestArcTime(); next_ns_ += step_ns) {
+    for (; next_ns_ >= 0 && next_ns_ <= backend.finalUntil(); next_ns_ += step_ns) {
       Pose3 T;
       double v = 0.0, omega = 0.0;
       if (next(backend, next_ns_, &T, &v, &omega)) emit(next_ns_, T, v, omega);
