@@ -246,6 +246,63 @@ TEST(Frontend, StandstillWindowsKeepTheirMovingEdgesAtTheCurvatureBeforeTheStop)
   EXPECT_EQ(edges, 2u);
 }
 
+// A window /odom says is still for most of its time but whose mean speed is above the standstill
+// speed (a start): its events barely moved, so it is held and its moving end keeps the curvature
+// from before the stop; a window still for less than half its time keeps its events' estimate.
+TEST(Frontend, AMostlyStillWindowIsAStandstillWithAMovingEdge) {
+  const double w = 20.0 / kDegPerRad, v = 0.4, kappa = w / v;
+  const AckermannArcModel truth(w, v, secToNs(5.0), defaultTBaseCam());
+  const EventVector events = synthetic::randomPointEvents(camera(), truth, 60000, 7, 0.75, 600);
+  Frontend fe(options(), camera(), defaultTBaseCam());
+  // Windows [4.25, 4.55) and [4.55, 4.85) move; [4.85, 5.15) stands until 5.05 (mean speed
+  // 0.13 m/s, above standstill_speed_mps); [5.15, 5.45) stands from 5.17 to 5.27 only.
+  auto speed = [&](double t) {
+    const bool still = (t >= 4.85 && t < 5.05) || (t >= 5.17 && t < 5.27);
+    return still ? 0.0 : v;
+  };
+  for (int k = 0; k <= 150; ++k) {
+    const double t = 4.25 + 0.01 * k;
+    fe.addOdometry(secToNs(t), speed(t), 0.0);
+  }
+  fe.addEvents(events);
+  const std::vector<ArcEstimate> arcs = fe.process();
+  EXPECT_EQ(fe.stats().windows_standstill_edges, 1u);
+  double kappa_before = 0;
+  bool held = false, edge = false, kept = false;
+  for (size_t i = 0; i < arcs.size(); ++i) {
+    const ArcEstimate& a = arcs[i];
+    if (i > 0) {
+      EXPECT_EQ(a.t_start_ns, arcs[i - 1].t_end_ns);  // the arcs tile the time
+    }
+    const double t0 = nsToSec(a.t_start_ns), t1 = nsToSec(a.t_end_ns);
+    if (t1 <= 4.85 + 1e-6) {
+      ASSERT_EQ(a.status, ArcStatus::kOk);
+      kappa_before = a.omega / a.v;
+    } else if (t0 < 5.15 - 1e-6) {  // the mostly still window
+      if (a.status == ArcStatus::kStandstill) {
+        held = true;
+        EXPECT_EQ(a.omega, 0.0);
+        EXPECT_LT(t1, 5.06);
+      } else {
+        edge = true;
+        ASSERT_EQ(a.status, ArcStatus::kOk);
+        EXPECT_GT(t0, 5.03);
+        EXPECT_GT(a.v, 0.3);  // the mean of its /odom samples, the last still one included
+        EXPECT_LE(a.v, v);
+        EXPECT_NEAR(a.omega, kappa_before * a.v, 1e-12);
+        EXPECT_NEAR(a.omega / a.v, kappa, 0.05 * kappa);
+      }
+    } else if (t0 >= 5.15 - 1e-6 && t1 <= 5.45 + 1e-6) {  // still for a third: its events' arc
+      kept = true;
+      EXPECT_EQ(a.status, ArcStatus::kOk);
+      EXPECT_NEAR(t1 - t0, 0.3, 1e-6);
+    }
+  }
+  EXPECT_TRUE(held);
+  EXPECT_TRUE(edge);
+  EXPECT_TRUE(kept);
+}
+
 // Without /odom a slow window (braking: fewer events per second) is driven slower; the speed the
 // back-end refines there is smoothed across the step to the faster windows and says nothing
 // about the moving speed, so the follower's speed is taken only in windows at the moving rate.

@@ -104,7 +104,8 @@ struct FrontendStats {
   size_t windows_thinned = 0;  // estimated on 1/k of max_events_per_volume (setVolumeThinning)
   size_t evaluations = 0;
   size_t windows_slow = 0;              // without odometry: nominal speed scaled by the event rate
-  size_t windows_standstill_edges = 0;  // standstill windows split where /odom stops or starts
+  size_t windows_standstill_edges = 0;  // standstill (or mostly still) windows split where /odom
+                                        // stops or starts
   size_t windows_one_sided = 0;         // estimated with the deeper planes (one_sided.z_min_m)
   size_t windows_one_sided_near =
       0;  // one-sided, but the structure nearer than one_sided.min_depth_m
