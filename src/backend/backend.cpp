@@ -810,7 +810,7 @@ bool Backend::planarPoseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* 
   if (!dead_reckoning_ || t_ns < dead_reckoning_->startTime() || t_ns > newest_arc_ns_)
     return false;
   constexpr int64_t kRateStep_ns = 20000000;  // central differences for the rates [ns]
-  // Beyond the spline, the dead reckoning anchored on it at processedUntil(); anchored at each
+  // Beyond spline_final_ns_, the dead reckoning anchored on the spline there; anchored at each
   // call, because a ramp's pose there changes until the next arc's middle has arrived.
   const ArcChain& chain = dead_reckoning_->ramped();
   Pose3 T_anchor = Pose3::Identity();

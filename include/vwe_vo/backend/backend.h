@@ -333,12 +333,12 @@ class Backend {
   /// First control point the last refinement optimised (the ones before it are fixed).
   int firstFree() const { return first_free_; }
   /// Pose of base_link in odom at t_ns with its speed [m/s] and yaw rate [rad/s] (may be null):
-  /// on the refined spline up to processedUntil(), beyond it (up to the newest arc) the arcs'
-  /// dead reckoning anchored on the spline at processedUntil(); before the first refinement that
-  /// dead reckoning alone. The dead reckoning follows the same rule as the spline's fit: with
-  /// interpolate_arc_rates the rates ramp between the arcs' middles (poses up to finalUntil()
-  /// are final, the ones after it extrapolate the newest arc), else each arc's rates over its own
-  /// window. False if t_ns is outside [first arc, newest arc].
+  /// on the refined spline up to where finalUntil() was at the last refinement (processedUntil()
+  /// with steps), beyond it (up to the newest arc) the arcs' dead reckoning anchored on the spline
+  /// there; before the first refinement that dead reckoning alone. The dead reckoning follows the
+  /// same rule as the spline's fit: with interpolate_arc_rates the rates ramp between the arcs'
+  /// middles (poses up to finalUntil() are final, the ones after it extrapolate the newest arc),
+  /// else each arc's rates over its own window. False if t_ns is outside [first arc, newest arc].
   /// With the IMU (enableImu) the pose is composed with the estimated tilt (tiltAt); the rates
   /// are the planar pose's.
   bool poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const;
