@@ -512,20 +512,17 @@ std::vector<ArcEstimate> Frontend::process() {
     bool scanned = false;
     ArcEstimate arc = estimateSpan(window, t0, t1, WindowScan(), &scanned);
     std::vector<ArcEstimate> parts{arc};
-    if (arc.status == ArcStatus::kStandstill) {
-      std::vector<ArcEstimate> edges = standstillEdges(window, t0, t1);
-      if (!edges.empty()) parts = std::move(edges), ++stats_.windows_standstill_edges;
-    } else if (arc.status == ArcStatus::kOk) {
-      // A window /odom says is still for most of its time (a start or a stop just above the
-      // mean standstill speed) moved a centimetre: its events' yaw rate is noise (a start of
-      // indoor_long found 6.5 deg/s, 2 deg over the window). It becomes a standstill with a
-      // moving edge, which keeps the curvature from before the stop.
+    // A standstill window's moving edges become arcs. So do those of a window /odom says is
+    // still for most of its time (a start or a stop just above the mean standstill speed): it
+    // moved a centimetre and its events' yaw rate is noise (a start of indoor_long found
+    // 6.5 deg/s, 2 deg over the window).
+    if (arc.status == ArcStatus::kStandstill || arc.status == ArcStatus::kOk) {
       std::vector<ArcEstimate> edges = standstillEdges(window, t0, t1);
       int64_t moving_ns = 0;
       for (const ArcEstimate& e : edges)
         if (e.status != ArcStatus::kStandstill) moving_ns += e.t_end_ns - e.t_start_ns;
-      if (!edges.empty() && 2 * moving_ns < t1 - t0)
-        parts = std::move(edges), ++stats_.windows_standstill_edges;
+      const bool still = arc.status == ArcStatus::kStandstill || 2 * moving_ns < t1 - t0;
+      if (!edges.empty() && still) parts = std::move(edges), ++stats_.windows_standstill_edges;
     }
     // The yaw rate changed within reach of this window: a constant arc would average a ramp
     // badly, so the window is estimated again as two halves (not with overlapping windows).
