@@ -11,8 +11,8 @@ void OneSidedOptions::validate(const VolumeOptions& normal, const std::string& s
   };
   if (!(balance >= 0 && balance < 1)) fail("balance must be in [0, 1)");
   if (balance == 0) return;
-  if (!(z_min_m > normal.z_min_m && z_min_m < normal.z_max_m))
-    fail("z_min_m must be in (volume.z_min_m, volume.z_max_m)");
+  if (!(z_min_m > normal.z_min_m && (z_min_m < normal.z_max_m || normal.z_max_m < 0)))
+    fail("z_min_m must be in (volume.z_min_m, volume.z_max_m) (any deeper one if z_max_m < 0)");
   if (!(min_depth_m > 0 && min_depth_m < 1e4)) fail("min_depth_m must be in (0, 1e4) m");
 }
 

@@ -111,6 +111,8 @@ EmvsOptions::EmvsOptions() {
 void EmvsOptions::validate(const std::string& section) const {
   auto fail = [&](const std::string& m) { throw std::invalid_argument(section + "." + m); };
   volume.validate(section + ".volume");
+  if (!(volume.z_max_m > volume.z_min_m))
+    fail("volume.z_max_m must be larger than volume.z_min_m (a depth map needs finite depths)");
   if (adaptive_kernel_size < 3 || adaptive_kernel_size % 2 == 0 || adaptive_kernel_size > 101)
     fail("adaptive_kernel_size must be odd in [3, 101]");
   if (!(adaptive_sigma_px >= 0.0) || !std::isfinite(adaptive_sigma_px))

@@ -32,7 +32,8 @@ void VolumeOptions::validate(const std::string& section) const {
   if (margin_px < 0 || margin_px > 200) fail("margin_px must be in [0, 200]");
   if (num_planes < 2 || num_planes > 512) fail("num_planes must be in [2, 512]");
   if (!(z_min_m > 0)) fail("z_min_m must be positive");
-  if (!(z_max_m > z_min_m)) fail("z_max_m must be larger than z_min_m");
+  if (!(z_max_m > z_min_m || z_max_m < 0))
+    fail("z_max_m must be larger than z_min_m, or negative (planes through infinity)");
   if (num_threads < 1 || num_threads > 64) fail("num_threads must be in [1, 64]");
   if (!(pose_slice_s >= 0 && pose_slice_s <= 0.01)) fail("pose_slice_s must be in [0, 0.01]");
 }
@@ -55,6 +56,8 @@ ProjectiveVolume::ProjectiveVolume(const VolumeOptions& options, int sensor_widt
   cy_ = (cy + 0.5) * s - 0.5 + m;
   const int L = options_.num_planes;
   rho_.resize(L);
+  // A negative z_max_m puts the far planes past inverse depth 0: a ray is a line, and
+  // u0 + rho du continues it through infinity (see VolumeOptions::z_max_m).
   const double rho_near = 1.0 / options_.z_min_m, rho_far = 1.0 / options_.z_max_m;
   for (int l = 0; l < L; ++l) rho_[l] = rho_near + (rho_far - rho_near) * l / (L - 1);
   grid_.assign(numVoxels(), 0.0f);

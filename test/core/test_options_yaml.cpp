@@ -186,6 +186,9 @@ TEST(OptionsYaml, NestedErrorsNameTheFullKey) {
       {"backend:\n  volume: {z_min_m: -1}\n", "backend.volume.z_min_m"},
       {"frontend:\n  volume: {num_planes: 1}\n", "frontend.volume.num_planes"},
       {"mapping:\n  volume: {z_max_m: 0.1}\n", "mapping.volume.z_max_m"},
+      {"mapping:\n  volume: {z_max_m: -10}\n",
+       "mapping.volume.z_max_m"},  // no depth map past infinity
+      {"backend:\n  volume: {z_max_m: 0}\n", "backend.volume.z_max_m"},
       {"mapping:\n  global_map: {voxel_size_m: 0}\n", "mapping.global_map.voxel_size_m"},
       {"frontend:\n  one_sided_balance: 2\n", "frontend.one_sided_balance"},
       {"baseline:\n  klt_window_px: 4\n", "baseline.klt_window_px"},

@@ -3,6 +3,8 @@
 // location of its maximum for events generated from a known motion.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "../common/synthetic_events.h"
@@ -208,4 +210,63 @@ TEST(VweObjective, SubsamplingIsDeterministicAndBounded) {
   for (size_t i = 1; i < a.size(); ++i) ASSERT_GT(a[i].t_ns, a[i - 1].t_ns);
   EXPECT_GT(a.back().t_ns, 9000);  // spans the window
   EXPECT_EQ(subsampleEvents(ev, 20000, 7).size(), ev.size());
+}
+
+// A street's facade on one side, 5 m away, from 4 m ahead to the horizon (points uniform in
+// inverse depth down to 400 m: uniform over the image), seen while driving straight at 7.5 m/s.
+// A yaw error towards the facade only brings its points nearer; the opposite error moves its
+// distant points past infinity. Planes that end at a finite depth lose those votes, so the
+// facade pulls the yaw towards itself; planes continued through infinity (z_max_m < 0) see both
+// errors alike. Both sides, two draws of points; the same plane spacing both ways.
+TEST(VweObjective, PlanesThroughInfinityKeepADistantFacadeFromPullingTheYaw) {
+  const CameraModel cam(testCalibration());
+  {
+    VolumeOptions o = volumeOptions(1);
+    o.z_min_m = 4.5;
+    o.z_max_m = -10.0;
+    o.num_planes = 36;
+    const ProjectiveVolume volume(o, cam.width(), cam.height(), 250, 250, 173, 130);
+    EXPECT_NEAR(volume.planeDepth(0), 4.5, 1e-12);
+    EXPECT_NEAR(volume.planeInverseDepth(35), -0.1, 1e-12);
+    EXPECT_TRUE(std::isinf(volume.planeDepth(35)));  // past infinity: deeper than any depth
+  }
+  // The maximum over the yaw rate [deg/s], positive towards the facade.
+  auto pullTowardsFacade = [&](double side, unsigned seed, double z_max_m, int num_planes) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<Vec3> facade;  // camera frame: x right, y down; 1.5 m below to 6 m above
+    for (int i = 0; i < 3000; ++i)
+      facade.emplace_back(5.0 * side, 1.5 - 7.5 * u(rng), 1.0 / (0.25 - 0.2475 * u(rng)));
+    const EventVector ev =
+        synthetic::pointEvents(cam, YawForwardModel(0.0, 7.5), facade, 8000, &rng, 0.15);
+    VolumeOptions o = volumeOptions(2);
+    o.grid_scale = 1.0;
+    o.z_min_m = 4.5;
+    o.z_max_m = z_max_m;
+    o.num_planes = num_planes;
+    ProjectiveVolume volume(o, cam.width(), cam.height(), 250, 250, 173, 130);
+    VweObjective obj(cam, &volume);
+    double best = -1, best_w = 0;
+    for (double w_deg = -4; w_deg <= 4; w_deg += 0.125) {
+      const double c = obj.evaluate(ev, YawForwardModel(w_deg / kDegPerRad, 7.5)).contrast;
+      if (c > best) best = c, best_w = w_deg;
+    }
+    // YawForwardModel turns about the up axis (-y): positive w turns left, towards x < 0.
+    return -best_w * side;
+  };
+  double finite_sum = 0, through_sum = 0;
+  for (double side : {-1.0, 1.0})
+    for (unsigned seed : {5u, 6u}) {
+      const double finite = pullTowardsFacade(side, seed, 60.0, 30),
+                   through = pullTowardsFacade(side, seed, -10.0, 36);
+      std::printf(
+          "[vwe objective] facade on the %s (seed %u): yaw pulled %.3f deg/s towards it "
+          "with planes to 60 m, %.3f through infinity\n",
+          side < 0 ? "left" : "right", seed, finite, through);
+      EXPECT_LT(std::abs(through), std::abs(finite));
+      finite_sum += finite;
+      through_sum += through;
+    }
+  EXPECT_GT(finite_sum / 4, 0.6);              // measured 1.06
+  EXPECT_LT(std::abs(through_sum / 4), 0.35);  // measured 0.125
 }

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -30,11 +31,18 @@ const char* contrastName(Contrast contrast);
 struct VolumeOptions {
   double grid_scale = 0.5;  // grid resolution relative to the sensor (0.5 = half resolution)
   Contrast contrast = Contrast::kDensityPerVote;  // the objective's measure (see Contrast)
-  int margin_px = 8;      // grid padding around the image on each side [grid px]
-  int num_planes = 30;    // depth planes, uniform in inverse depth
-  double z_min_m = 0.4;   // nearest plane [m]
-  double z_max_m = 12.0;  // farthest plane [m]
-  int num_threads = 2;    // threads for voting (split over planes)
+  int margin_px = 8;     // grid padding around the image on each side [grid px]
+  int num_planes = 30;   // depth planes, uniform in inverse depth
+  double z_min_m = 0.4;  // nearest plane [m]
+  // Farthest plane [m]. Negative: the planes run on through infinity (inverse depth 0) to
+  // inverse depth 1 / z_max_m < 0, the continuation of the rays past their point at infinity.
+  // For open scenes (a street that runs to the horizon): a finite far plane is a cliff, and a
+  // yaw error that moves distant points of one side past infinity loses their votes while the
+  // opposite error only brings them nearer, so each side's distant structure pulls the yaw
+  // towards itself (street_drive, in the right lane: front-end yaw 0.76 x true + 0.6 deg/s).
+  // Where every surface is nearer than z_max_m (a room), the finite cliff is true and helps.
+  double z_max_m = 12.0;
+  int num_threads = 2;  // threads for voting (split over planes)
   // The events of a slice of this many seconds (a fixed grid of absolute times) share the pose
   // at its middle (poseSliceTime in vwe/ray_builder.h), in the VWE and the EMVS DSI alike (0: a
   // pose per event). 0.5 ms moves the camera 3 mm at 6 m/s and turns it 0.5 mrad at 1 rad/s
@@ -63,7 +71,10 @@ class ProjectiveVolume {
   int height() const { return height_; }
   int numPlanes() const { return options_.num_planes; }
   size_t numVoxels() const { return size_t(width_) * height_ * options_.num_planes; }
-  double planeDepth(int l) const { return 1.0 / rho_[l]; }
+  /// Depth of plane l [m]; infinity for the planes at and past infinity (inverse depth <= 0).
+  double planeDepth(int l) const {
+    return rho_[l] > 0 ? 1.0 / rho_[l] : std::numeric_limits<double>::infinity();
+  }
   double planeInverseDepth(int l) const { return rho_[l]; }
   /// The volume's virtual pinhole (grid pixels).
   double fx() const { return fx_; }
@@ -94,7 +105,8 @@ class ProjectiveVolume {
   double clear(const std::vector<VolumeRay>& rays);
 
   /// After vote(): the depth of the plane where the ray's bilinear footprint holds the most
-  /// votes, i.e. where the rays around it meet (0 if it meets no plane). Costs one read per plane.
+  /// votes, i.e. where the rays around it meet (0 if it meets no plane; infinity for a plane at
+  /// or past infinity). Costs one read per plane.
   double peakDepth(const VolumeRay& ray) const;
 
   /// Voxel value after vote() (for tests, EMVS argmax, images).
