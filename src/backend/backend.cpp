@@ -426,6 +426,7 @@ bool Backend::process() {
 }
 
 void Backend::finish() {
+  if (imu_ && dead_reckoning_) advanceImu(true);
   if (!dead_reckoning_ || newest_arc_ns_ <= processed_ns_) return;
   if (dtSec(newest_arc_ns_, dead_reckoning_->startTime()) < 2 * options_.init_sample_interval_s)
     return;

@@ -22,6 +22,7 @@ struct Backend::Imu {
   void reset() {
     pending.clear();
     yaw_rates.clear();
+    yaw_rates_until_ns = -1;
     attitude.reset();
     tilts.clear();
     motion_ns = -1;
@@ -32,9 +33,10 @@ struct Backend::Imu {
   };
   ImuFusionOptions options;
   Pose3 T_base_imu;
-  std::deque<ImuSample> pending;  // in base_link, not yet reached by the arcs
+  std::deque<ImuSample> pending;  // in base_link, not yet in the attitude filter
   int64_t newest_ns = -1;
-  std::deque<YawRate> yaw_rates;  // of the last window (GyroRatePrior bins)
+  std::deque<YawRate> yaw_rates;    // of the last window (GyroRatePrior bins)
+  int64_t yaw_rates_until_ns = -1;  // the newest sample in yaw_rates
   AttitudeFilter attitude;
   TiltHistory tilts;
   GyroBiasFilter bias;

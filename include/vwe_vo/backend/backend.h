@@ -371,7 +371,9 @@ class Backend {
   // The IMU (backend_imu.cpp).
   struct Imu;
   std::unique_ptr<Imu> imu_;
-  void advanceImu();
+  // The gyro's yaw rates up to the newest arc; the attitude filter a central difference of the
+  // speed (diff_ns) behind it, all the way with to_newest (finish()).
+  void advanceImu(bool to_newest = false);
   std::unique_ptr<SplinePrior> makeGyroPrior(double u_window, double u_new, int first_free);
   void updateGyroBias(const SplinePrior* prior, int64_t t_new_ns);
   Pose3 withTilt(int64_t t_ns, const Pose3& T_planar) const;
