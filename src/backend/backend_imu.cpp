@@ -60,13 +60,12 @@ void Backend::advanceImu(bool to_newest) {
   // tilt moves little in diff_ns, and the Euler yaw rate barely depends on it.
   const auto after = std::upper_bound(m.pending.begin(), m.pending.end(), m.yaw_rates_until_ns,
                                       [](int64_t t, const ImuSample& s) { return t < s.t_ns; });
+  const Tilt tilt = m.attitude.tilt();
+  const Vec3& xy_bias = m.attitude.bias();
   for (auto it = after; it != m.pending.end() && it->t_ns <= newest_arc_ns_; ++it) {
     const ImuSample& s = *it;
-    const Tilt tilt = m.attitude.tilt();
-    const Vec3& b = m.attitude.bias();
-    m.yaw_rates.push_back(
-        {s.t_ns, eulerYawRate(Vec3(s.gyro.x() - b.x(), s.gyro.y() - b.y(), s.gyro.z()), tilt.roll,
-                              tilt.pitch)});
+    const Vec3 gyro(s.gyro.x() - xy_bias.x(), s.gyro.y() - xy_bias.y(), s.gyro.z());
+    m.yaw_rates.push_back({s.t_ns, eulerYawRate(gyro, tilt.roll, tilt.pitch)});
     m.yaw_rates_until_ns = s.t_ns;
   }
   const int64_t attitude_until = to_newest ? newest_arc_ns_ : newest_arc_ns_ - diff_ns;

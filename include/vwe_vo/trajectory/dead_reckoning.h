@@ -72,12 +72,13 @@ Trajectory3 integrateRamps(const std::vector<TimedRates>& arcs, int64_t step_ns)
 /// The back-end's incremental dead reckoning of the arcs as they arrive, in two views of the
 /// same arcs from the identity at t_start_ns:
 ///  - steps(): each arc at its own rates over its own window. A pose there never changes once
-///    its arc has arrived (the continuous odometry beyond the refined spline is built on it).
+///    its arc has arrived.
 ///  - ramped(): with interpolate_rates, the rates ramp between the arcs' middles (rampRates, in
 ///    kRampPieces constant pieces) and the chain ends at the newest arc's middle, going on at its
 ///    rates; the next arc appends the ramp from there, so poses behind the newest arc's middle are
 ///    final but the ones after it change. Standstills hold the pose. Without interpolate_rates it
-///    equals steps(). The spline's initial fit follows this view.
+///    equals steps(). The spline's initial fit and the back-end's poses beyond the refined
+///    spline (Backend::planarPoseAt) follow this view.
 class ArcDeadReckoning {
  public:
   static constexpr int kRampPieces = 8;
