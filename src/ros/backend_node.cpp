@@ -21,6 +21,7 @@ namespace vwe_vo {
 void BackendNodeOptions::validate() const {
   auto fail = [](const std::string& m) { throw std::invalid_argument("backend_node: " + m); };
   if (max_queue_events < 1) fail("~max_queue_events must be at least 1");
+  if (threads < 0 || threads > 64) fail("~threads must be in [0, 64] (0: the config's)");
   if (max_queue_messages < 1) fail("~max_queue_messages must be at least 1");
   if (!(odom_rate_hz > 0 && odom_rate_hz <= 1000)) fail("~odom_rate_hz must be in (0, 1000] [Hz]");
   if (path_max_poses < 1) fail("~path_max_poses must be at least 1");
@@ -62,6 +63,7 @@ void BackendNode::readParameters() {
   params.read("odom_rate_hz", &o.odom_rate_hz);
   params.read("path_max_poses", &o.path_max_poses);
   params.read("status_period_s", &o.status_period_s);
+  params.read("threads", &o.threads);
   params.read("publish_tf", &o.publish_tf);
   params.read("nice", &o.nice);
   params.read("use_imu", &o.use_imu);
@@ -72,6 +74,7 @@ void BackendNode::readParameters() {
   const PipelineConfig config = loadPipelineConfig(o.config_path);
   for (const std::string& w : config.warnings) ROS_WARN("backend_node: %s", w.c_str());
   backend_options_ = config.backend;
+  if (o.threads > 0) backend_options_.volume.num_threads = o.threads;
   backend_options_.validate();
   T_base_cam_ = config.T_base_cam;
   input_.setTimestampPolicy(config.input);
@@ -91,12 +94,12 @@ void BackendNode::readParameters() {
   ROS_INFO(
       "backend_node: config %s, calibration %s; spline degree %d, knots every %.2f s, window "
       "%.1f s refined every %.1f s, volumes every %.2f s over %.2f s with <= %zu events, "
-      "contrast %s, %d iterations; odom at %.1f Hz, reset after a %.1f s gap, tf %d",
+      "contrast %s, %d iterations, %d threads; odom at %.1f Hz, reset after a %.1f s gap, tf %d",
       o.config_path.c_str(),
       o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(), b.degree,
       b.knot_spacing_s, b.window_s, b.update_interval_s, b.tau1_s, b.tau2_s,
-      b.max_events_per_volume, contrastName(b.volume.contrast), b.max_iterations, o.odom_rate_hz,
-      driver_options_.max_gap_s, o.publish_tf);
+      b.max_events_per_volume, contrastName(b.volume.contrast), b.max_iterations,
+      b.volume.num_threads, o.odom_rate_hz, driver_options_.max_gap_s, o.publish_tf);
 }
 
 // ------------------------------------------------------------------------------------------------

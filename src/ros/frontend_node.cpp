@@ -28,6 +28,7 @@ constexpr size_t kMaxRecentEvents = 2000000;
 void FrontendNodeOptions::validate() const {
   auto fail = [](const std::string& m) { throw std::invalid_argument("frontend_node: " + m); };
   if (max_queue_events < 1) fail("~max_queue_events must be at least 1");
+  if (threads < 0 || threads > 64) fail("~threads must be in [0, 64] (0: the config's)");
   if (max_queue_messages < 1) fail("~max_queue_messages must be at least 1");
   if (!(max_latency_s > 0)) fail("~max_latency_s must be positive [s]");
   if (!(status_period_s > 0)) fail("~status_period_s must be positive [s]");
@@ -83,6 +84,7 @@ void FrontendNode::readParameters() {
   params.read("max_queue_messages", &o.max_queue_messages);
   params.read("max_latency_s", &o.max_latency_s);
   params.read("status_period_s", &o.status_period_s);
+  params.read("threads", &o.threads);
   params.read("follow_backend", &o.follow_backend);
   if (o.config_path.empty()) o.config_path = defaultConfigDir() + "/vwe_vo.yaml";
   params.finish();
@@ -91,6 +93,7 @@ void FrontendNode::readParameters() {
   const PipelineConfig config = loadPipelineConfig(o.config_path);
   for (const std::string& w : config.warnings) ROS_WARN("frontend_node: %s", w.c_str());
   frontend_options_ = config.frontend;
+  if (o.threads > 0) frontend_options_.volume.num_threads = o.threads;
   if (o.nominal_speed_mps >= 0) frontend_options_.nominal_speed_mps = o.nominal_speed_mps;
   frontend_options_.validate();
   if (frontend_options_.use_gyro_prior && !o.use_imu)
@@ -115,10 +118,11 @@ void FrontendNode::readParameters() {
   }
 
   const FrontendOptions& f = frontend_options_;
-  ROS_INFO("frontend_node: config %s, calibration %s, nominal_speed %.3f m/s%s",
+  ROS_INFO("frontend_node: config %s, calibration %s, nominal_speed %.3f m/s%s, %d threads",
            o.config_path.c_str(),
            o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(),
-           f.nominal_speed_mps, o.nominal_speed_mps >= 0 ? " (~nominal_speed)" : " (config)");
+           f.nominal_speed_mps, o.nominal_speed_mps >= 0 ? " (~nominal_speed)" : " (config)",
+           f.volume.num_threads);
   ROS_INFO(
       "frontend_node: windows of %s, %zu events per volume, %d planes in [%.2f, %.2f] m at grid "
       "scale %.2f, contrast %s, "

@@ -21,6 +21,7 @@ namespace vwe_vo {
 void MappingNodeOptions::validate() const {
   auto fail = [](const std::string& m) { throw std::invalid_argument("mapping_node: " + m); };
   if (!(cloud_period_s > 0)) fail("~cloud_period_s must be positive [s]");
+  if (threads < 0 || threads > 64) fail("~threads must be in [0, 64] (0: the config's)");
   if (!(trajectory_margin_s >= 0) || !std::isfinite(trajectory_margin_s))
     fail("~trajectory_margin_s must be finite and >= 0 [s]");
   if (!(keyframe_timeout_s >= 0)) fail("~keyframe_timeout_s must be >= 0 [s]");
@@ -59,6 +60,7 @@ void MappingNode::readParameters() {
   params.read("keyframe_timeout_s", &o.keyframe_timeout_s);
   params.read("max_queue_events", &o.max_queue_events);
   params.read("status_period_s", &o.status_period_s);
+  params.read("threads", &o.threads);
   params.read("nice", &o.nice);
   if (o.config_path.empty()) o.config_path = defaultConfigDir() + "/vwe_vo.yaml";
   params.finish();
@@ -67,6 +69,7 @@ void MappingNode::readParameters() {
   const PipelineConfig config = loadPipelineConfig(o.config_path);
   for (const std::string& w : config.warnings) ROS_WARN("mapping_node: %s", w.c_str());
   emvs_options_ = config.mapping;
+  if (o.threads > 0) emvs_options_.volume.num_threads = o.threads;
   global_map_options_ = config.global_map;
   emvs_options_.validate();
   global_map_options_.validate();
@@ -81,8 +84,9 @@ void MappingNode::readParameters() {
   }
 
   const EmvsOptions& e = emvs_options_;
-  ROS_INFO("mapping_node: config %s, calibration %s", o.config_path.c_str(),
-           o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str());
+  ROS_INFO("mapping_node: config %s, calibration %s, %d threads", o.config_path.c_str(),
+           o.calibration_path.empty() ? "from camera_info" : o.calibration_path.c_str(),
+           emvs_options_.volume.num_threads);
   ROS_INFO(
       "mapping_node: keyframe every %.2f m or %.1f deg or %zu events; DSI %d planes in [%.2f, "
       "%.2f] m at grid scale %.2f; %zu events may wait for the trajectory; at most %.0f events/s "

@@ -43,6 +43,7 @@ struct BackendNodeOptions {
   double status_period_s = 10.0;   // ~status_period_s: period of the one-line status [s]
   bool publish_tf = true;          // ~publish_tf: broadcast odom -> base_link
   int nice = 0;                    // ~nice: CPU priority (0..19; higher yields to the front-end)
+  int threads = 0;                 // ~threads: voting threads (0: the config's volume.num_threads)
   bool use_imu = false;   // ~use_imu: fuse /dvs/imu (gyro yaw rate, pitch and roll; config imu:)
   void validate() const;  // throws std::invalid_argument naming the parameter
 };

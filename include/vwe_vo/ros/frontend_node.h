@@ -46,6 +46,7 @@ struct FrontendNodeOptions {
                                    // trajectories) [messages]
   double max_latency_s = 1.0;      // ~max_latency_s: backlog beyond this drops whole windows [s]
   double status_period_s = 10.0;   // ~status_period_s: period of the one-line status [s]
+  int threads = 0;                 // ~threads: voting threads (0: the config's volume.num_threads)
   bool follow_backend = true;      // ~follow_backend: re-anchor on /vwe/trajectory, use its speed
   void validate() const;           // throws std::invalid_argument naming the parameter
 };

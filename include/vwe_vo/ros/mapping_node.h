@@ -38,6 +38,7 @@ struct MappingNodeOptions {
                                     // (room for bursts while keyframes close) [events]
   double status_period_s = 10.0;    // ~status_period_s: period of the one-line status [s]
   int nice = 0;                     // ~nice: CPU priority (0..19; higher yields to the others)
+  int threads = 0;                  // ~threads: voting threads (0: the config's volume.num_threads)
   void validate() const;            // throws std::invalid_argument naming the parameter
 };
 
