@@ -25,6 +25,8 @@ GyroRatePrior::GyroRatePrior(std::shared_ptr<const BSpline> spline, int first_fr
     bins_.push_back(b);
     inv_var_.push_back(1.0 / (noise_density * noise_density / dt + model_sigma * model_sigma));
     standstill_.push_back(spline_->standstillAt(b.u_start) && spline_->standstillAt(b.u_end));
+    still_.push_back(spline_->standstillAt(b.u_start - kStillMargin_s) &&
+                     spline_->standstillAt(b.u_end + kStillMargin_s));
   }
 }
 
@@ -40,16 +42,20 @@ size_t GyroRatePrior::numStandstillBins() const {
   return size_t(std::count(standstill_.begin(), standstill_.end(), true));
 }
 
+size_t GyroRatePrior::numStillBins() const {
+  return size_t(std::count(still_.begin(), still_.end(), true));
+}
+
 size_t GyroRatePrior::measuredBiasBins(size_t min_standstill_bins) const {
-  const size_t held = numStandstillBins();
-  return held > 0 && held >= min_standstill_bins ? held : bins_.size();
+  const size_t still = numStillBins();
+  return still > 0 && still >= min_standstill_bins ? still : bins_.size();
 }
 
 double GyroRatePrior::measuredBias(size_t min_standstill_bins) const {
-  const size_t held = numStandstillBins();
+  const size_t still = numStillBins();
   std::vector<double> r;
   for (size_t k = 0; k < bins_.size(); ++k)
-    if (held > 0 && held >= min_standstill_bins && standstill_[k]) r.push_back(bins_[k].rate);
+    if (still > 0 && still >= min_standstill_bins && still_[k]) r.push_back(bins_[k].rate);
   if (r.empty())
     for (const Bin& b : bins_) r.push_back(b.rate - meanRate(b, nullptr, nullptr));
   if (r.empty()) return 0.0;

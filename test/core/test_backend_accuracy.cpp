@@ -25,6 +25,7 @@ struct PipelineRun {
   EvaluationResult frontend, backend;
   size_t nonfinite_poses = 0;
   double yaw_bias_error_deg_s = 0.0;  // with the IMU: the estimated yaw-rate bias - the true one
+  double yaw_bias_deg_s = 0.0;        // ... the true one
 };
 
 /// Simulates `name` and runs front-end + back-end on it with config/<config>, the speed from
@@ -75,9 +76,9 @@ PipelineRun run(const std::string& name, const std::string& config_file = "vwe_v
   if (imu_sim) {
     // The yaw-rate bias: the camera-frame gyro bias along base_link's up axis.
     const Vec3 up_cam = spec.T_base_cam.linear().transpose() * Vec3::UnitZ();
+    r.yaw_bias_deg_s = up_cam.dot(imu_sim->gyroBias()) * kDegPerRad;
     r.yaw_bias_error_deg_s =
-        (pipeline.backend()->imuStats().yaw_bias_rad_s - up_cam.dot(imu_sim->gyroBias())) *
-        kDegPerRad;
+        pipeline.backend()->imuStats().yaw_bias_rad_s * kDegPerRad - r.yaw_bias_deg_s;
   }
   const EvaluationOptions o;
   r.frontend = evaluate(gt, pipeline.frontendTrajectory(), o);
@@ -181,19 +182,23 @@ TEST(BackendAccuracy, StreetDriveWeavingInTheRightLane) {
 // The car on its suspension (pitch/roll 1-2 deg, bumps, braking dives) with the DAVIS's IMU: the
 // tilt comes from gyro and accelerometer, the car's own acceleration removed with a central
 // difference of the odometry's speed; the yaw-rate bias is estimated against the events' yaw.
-// Measured: 3D rotation RMSE 0.496, tilt 0.117, translation direction 0.284 deg/s, yaw-rate bias
-// 0.172 deg/s high (the speed's difference cut at the newest arc: 0.82, 0.72, 0.80 on the bag;
-// the accelerometer's correction at 1 s instead of car.yaml's 3 s: tilt 0.219).
+// The first fit turns at the gyro's rate less the bias estimate; the bias is measured per window
+// against the yaw-rate offset the volumes prefer. Measured: 3D rotation RMSE 0.294, tilt 0.105,
+// translation direction 0.187 deg/s, yaw-rate bias 0.176 deg/s low (the street's windows measure
+// it to about 1 deg/s each; on the bag 0.01 off). With the arcs' rates as the first fit and the
+// bias from the spline's own offset: 0.496 / 0.117 / 0.284; the speed's difference cut at the
+// newest arc: 0.82, 0.72, 0.80 on the bag; the accelerometer's correction at 1 s instead of
+// car.yaml's 3 s: tilt 0.219.
 TEST(BackendAccuracy, StreetDriveOnItsSuspensionWithTheImu) {
   const PipelineRun r = run("street_drive", "car.yaml", 0.0, true);
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_GE(r.backend.tracked_fraction, 0.95);
   EXPECT_LE(r.backend.rpe.tilt_rmse_deg_s, 0.18);
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.7);
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.4);
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.4);
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.25);
   EXPECT_LE(std::abs(r.yaw_bias_error_deg_s), 0.25);
   std::printf(
       "[backend accuracy] street_drive with the IMU: tilt RPE %.3f deg/s, yaw-rate bias "
-      "%+.3f deg/s off\n",
-      r.backend.rpe.tilt_rmse_deg_s, r.yaw_bias_error_deg_s);
+      "%+.3f deg/s off (true %+.3f)\n",
+      r.backend.rpe.tilt_rmse_deg_s, r.yaw_bias_error_deg_s, r.yaw_bias_deg_s);
 }

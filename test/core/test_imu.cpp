@@ -264,6 +264,37 @@ TEST(Imu, GyroPriorModelSpreadWeighsTheBinsAgainstTheBiasPrior) {
   EXPECT_NEAR(floored.measuredBias(), b, 1e-9);
 }
 
+// A held standstill is made of whole front-end windows whose event rate fell: its first window
+// may still turn. Only bins kStillMargin_s inside it measure the bias from the gyro alone.
+TEST(Imu, GyroPriorMeasuresTheBiasOnlyWellInsideAStandstill) {
+  auto spline = curvedSpline();
+  spline->setStandstills({{1.0, 3.0}});
+  const double b = 0.3 * kPi / 180, nd = 0.005 * kPi / 180, turning = 0.6 * kPi / 180;
+  auto binsUntil = [&](double u_end) {
+    std::vector<GyroRatePrior::Bin> bins;
+    for (int k = 0; 0.3 + 0.05 * (k + 1) <= u_end + 1e-9; ++k) {
+      const double u = 0.3 + 0.05 * k;
+      const double rate = u < 1.0 - 1e-9
+                              ? wrapAngle(spline->heading(u + 0.05) - spline->heading(u)) / 0.05
+                          : u < 1.2 - 1e-9 ? turning  // the stop's first 0.2 s
+                                           : 0.0;
+      bins.push_back({u, u + 0.05, rate + b});
+    }
+    return bins;
+  };
+  // 0.4 s into the stop: 8 held bins, half of them turning, none well inside: no standstill
+  // measurement (the median of the held bins would be 0.3 deg/s off).
+  const GyroRatePrior early(spline, 4, binsUntil(1.4), 1e-3, nd, 0.0, 10 * kPi / 180);
+  EXPECT_EQ(early.numStandstillBins(), 8u);
+  EXPECT_FALSE(early.measuresStandstill());
+  EXPECT_EQ(early.measuredBiasBins(), early.numBins());
+  // 0.8 s into it: the bins from 1.3 s measure the bias, the turning start left out.
+  const GyroRatePrior later(spline, 4, binsUntil(1.8), 1e-3, nd, 0.0, 10 * kPi / 180);
+  EXPECT_TRUE(later.measuresStandstill());
+  EXPECT_EQ(later.measuredBiasBins(), 10u);
+  EXPECT_NEAR(later.measuredBias(), b, 1e-12);
+}
+
 TEST(Imu, GyroPriorGradientMatchesCentralFiniteDifferences) {
   auto spline = curvedSpline();
   const int first_free = 4;

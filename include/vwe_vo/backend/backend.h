@@ -166,6 +166,8 @@ class MultiVolumeObjective {
   std::vector<Kept> kept_;  // the newest last
 };
 
+class GyroRatePrior;
+
 /// A soft prior on the free control points of a spline (part of the back-end's cost).
 class SplinePrior {
  public:
@@ -375,7 +377,15 @@ class Backend {
   // speed (diff_ns) behind it, all the way with to_newest (finish()).
   void advanceImu(bool to_newest = false);
   std::unique_ptr<SplinePrior> makeGyroPrior(double u_window, double u_new, int first_free);
-  void updateGyroBias(const SplinePrior* prior, int64_t t_new_ns);
+  /// The yaw-rate offset of the new part the volumes prefer (parabola through the contrasts at
+  /// offsets of 0, +-1, +-2 x imu bias_window_sigma_deg_s) [rad/s]; NaN if it cannot be turned.
+  double preferredYawRateOffset(MultiVolumeObjective* objective, int first_free, double step_m);
+  /// The yaw-rate bias filter's measurement of a refined window: a standstill's gyro, or moving
+  /// the gyro against the spline turned by the volumes' preferred offset (events_offset_rad_s).
+  void updateGyroBias(const GyroRatePrior& gyro, int64_t t_new_ns, double events_offset_rad_s);
+  /// The gyro's mean yaw rate over [a, b] less the yaw-rate bias estimate, from the samples not
+  /// yet filtered; false unless they cover most of it.
+  bool gyroMeanYawRate(int64_t a_ns, int64_t b_ns, double* omega) const;
   Pose3 withTilt(int64_t t_ns, const Pose3& T_planar) const;
 
   BackendOptions options_;

@@ -32,9 +32,16 @@ struct ImuFusionOptions {
   double bias_time_constant_s = 20.0;  // slow filter of the refined windows' yaw-rate bias [s]
   double bias_sigma_deg_s = 0.5;       // prior spread of the yaw-rate bias before any estimate (the
                                        // simulated DAVIS's bound) [deg/s]
-  double bias_sigma_min_deg_s = 0.005;  // ... the filter's spread (1 / sqrt(information)) at least
-                                        // this: gyro_model_sigma over the bins of its time constant
+  double bias_sigma_min_deg_s = 0.005;  // each window's solve holds the bias at the filter's
+                                        // estimate to this (a window's own fit let its events'
+                                        // offset through); the filter's spread is at least this
   double bias_max_jump_deg_s = 1.0;     // a window's bias further from the estimate is refused
+  // Moving, each refined window measures the bias as the gyro's offset from the yaw rate its
+  // volumes prefer: the spline's new part is turned by yaw-rate offsets of +-1 and +-2 times
+  // this and the contrast's peak found by a parabola. It is also the measurement's spread: the
+  // events of one window place the yaw rate about this well (car.yaml: a street's facades pull
+  // single windows by up to a few deg/s) [deg/s].
+  double bias_window_sigma_deg_s = 0.5;
   double attitude_time_constant_s = 1.0;        // accelerometer correction of pitch and roll [s]
   double attitude_bias_time_constant_s = 10.0;  // integral (x/y gyro bias) of that correction [s]
   double max_accel_error_mps2 = 2.0;  // compensated specific force this far from |g|: the sample
