@@ -44,6 +44,24 @@ Pose3 Backend::withTilt(int64_t t_ns, const Pose3& T_planar) const {
   return T;
 }
 
+namespace {
+
+/// The Euler yaw rate of a base_link sample, its x/y gyro bias removed (the z bias is the
+/// back-end's) [rad/s].
+double yawRateOf(const ImuSample& s, const Vec3& xy_bias, const Tilt& tilt) {
+  const Vec3 gyro(s.gyro.x() - xy_bias.x(), s.gyro.y() - xy_bias.y(), s.gyro.z());
+  return eulerYawRate(gyro, tilt.roll, tilt.pitch);
+}
+
+/// The first pending sample after t_ns.
+std::deque<ImuSample>::const_iterator firstAfter(const std::deque<ImuSample>& pending,
+                                                 int64_t t_ns) {
+  return std::upper_bound(pending.begin(), pending.end(), t_ns,
+                          [](int64_t t, const ImuSample& s) { return t < s.t_ns; });
+}
+
+}  // namespace
+
 void Backend::advanceImu(bool to_newest) {
   Imu& m = *imu_;
   const int64_t t0 = dead_reckoning_ ? dead_reckoning_->startTime() : -1;
@@ -58,15 +76,11 @@ void Backend::advanceImu(bool to_newest) {
   if (!arcs_.empty()) diff_ns = std::max(diff_ns, arcs_.back().t_end_ns - arcs_.back().t_start_ns);
   // The gyro's yaw rates (the back-end's prior) up to the newest arc, with the newest tilt; the
   // tilt moves little in diff_ns, and the Euler yaw rate barely depends on it.
-  const auto after = std::upper_bound(m.pending.begin(), m.pending.end(), m.yaw_rates_until_ns,
-                                      [](int64_t t, const ImuSample& s) { return t < s.t_ns; });
   const Tilt tilt = m.attitude.tilt();
-  const Vec3& xy_bias = m.attitude.bias();
-  for (auto it = after; it != m.pending.end() && it->t_ns <= newest_arc_ns_; ++it) {
-    const ImuSample& s = *it;
-    const Vec3 gyro(s.gyro.x() - xy_bias.x(), s.gyro.y() - xy_bias.y(), s.gyro.z());
-    m.yaw_rates.push_back({s.t_ns, eulerYawRate(gyro, tilt.roll, tilt.pitch)});
-    m.yaw_rates_until_ns = s.t_ns;
+  for (auto it = firstAfter(m.pending, m.yaw_rates_until_ns);
+       it != m.pending.end() && it->t_ns <= newest_arc_ns_; ++it) {
+    m.yaw_rates.push_back({it->t_ns, yawRateOf(*it, m.attitude.bias(), tilt)});
+    m.yaw_rates_until_ns = it->t_ns;
   }
   const int64_t attitude_until = to_newest ? newest_arc_ns_ : newest_arc_ns_ - diff_ns;
   while (!m.pending.empty() && m.pending.front().t_ns <= attitude_until) {
@@ -137,18 +151,14 @@ std::unique_ptr<SplinePrior> Backend::makeGyroPrior(double u_window, double u_ne
 bool Backend::gyroMeanYawRate(int64_t a_ns, int64_t b_ns, double* omega) const {
   const Imu& m = *imu_;
   const Tilt tilt = m.attitude.tilt();
-  const Vec3& xy_bias = m.attitude.bias();
   double sum = 0.0;
   int n = 0;
   int64_t first = -1, last = -1;
-  for (const ImuSample& s : m.pending) {
-    if (s.t_ns < a_ns) continue;
-    if (s.t_ns > b_ns) break;
-    const Vec3 gyro(s.gyro.x() - xy_bias.x(), s.gyro.y() - xy_bias.y(), s.gyro.z());
-    sum += eulerYawRate(gyro, tilt.roll, tilt.pitch);
+  for (auto it = firstAfter(m.pending, a_ns - 1); it != m.pending.end() && it->t_ns <= b_ns; ++it) {
+    sum += yawRateOf(*it, m.attitude.bias(), tilt);
     ++n;
-    if (first < 0) first = s.t_ns;
-    last = s.t_ns;
+    if (first < 0) first = it->t_ns;
+    last = it->t_ns;
   }
   if (n < 2 || dtSec(last, first) < 0.8 * dtSec(b_ns, a_ns)) return false;
   *omega = sum / n - m.bias.bias();

@@ -47,15 +47,14 @@ size_t GyroRatePrior::numStillBins() const {
 }
 
 size_t GyroRatePrior::measuredBiasBins(size_t min_standstill_bins) const {
-  const size_t still = numStillBins();
-  return still > 0 && still >= min_standstill_bins ? still : bins_.size();
+  return measuresStandstill(min_standstill_bins) ? numStillBins() : bins_.size();
 }
 
 double GyroRatePrior::measuredBias(size_t min_standstill_bins) const {
-  const size_t still = numStillBins();
+  const bool still = measuresStandstill(min_standstill_bins);
   std::vector<double> r;
   for (size_t k = 0; k < bins_.size(); ++k)
-    if (still > 0 && still >= min_standstill_bins && still_[k]) r.push_back(bins_[k].rate);
+    if (still && still_[k]) r.push_back(bins_[k].rate);
   if (r.empty())
     for (const Bin& b : bins_) r.push_back(b.rate - meanRate(b, nullptr, nullptr));
   if (r.empty()) return 0.0;
