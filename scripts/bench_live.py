@@ -3,7 +3,7 @@
 scripts/replay_check.py at rate 1 and rate 2 on the simulated sequences, written to
 OUT/live.json: per run the CPU per data-second of every process (with nodelets: the manager, and
 each node's worker thread by name), everything dropped (front-end windows skipped behind, event
-packets lost before a node, inputs lost to full queues, mapper events dropped waiting, resets) and
+packets lost before a node, inputs lost to full queues, mapper events thinned waiting, resets) and
 the accuracy of /vwe/odom against /gt/pose (rotation RMSE over 1 s and ATE in % of the path, by
 vwe_vo_eval). The keys are documented in docs/evaluation.md. street_* sequences run with
 config/car.yaml, and every sequence with use_odom:=true (the wheel odometry of the bag), as the
@@ -36,7 +36,7 @@ def drops(summary):
     """What the system lost, summed over the nodes (None where a node sent no status line)."""
     nodes = summary.get("nodes", {})
     out = {"windows_skipped": 0, "packets_lost": 0, "queue_full": 0, "resets": 0,
-           "mapping_events_dropped_waiting": 0, "mapping_events_thinned": 0, "nodes_without_status": []}
+           "mapping_events_thinned_waiting": 0, "mapping_events_thinned": 0, "nodes_without_status": []}
     for name, c in nodes.items():
         if c is None:
             out["nodes_without_status"].append(name)
@@ -46,7 +46,7 @@ def drops(summary):
         out["queue_full"] += c.get("queue_full", 0)
         out["resets"] += c.get("resets", 0)
         if name == "mapping_node":
-            out["mapping_events_dropped_waiting"] = c.get("events_dropped_waiting", 0)
+            out["mapping_events_thinned_waiting"] = c.get("events_thinned_waiting", 0)
             out["mapping_events_thinned"] = c.get("events_thinned", 0)
     return out
 
@@ -108,7 +108,7 @@ def main():
     with open(path, "w") as f:
         json.dump(result, f, indent=2)
     print("[bench_live] %-12s %4s %-9s %9s %7s %7s %6s %6s %6s %9s %7s" % (
-        "sequence", "rate", "mode", "core-s/s", "skipped", "lost", "qfull", "resets", "mapdrop",
+        "sequence", "rate", "mode", "core-s/s", "skipped", "lost", "qfull", "resets", "mapthin",
         "rot deg/s", "ATE %"))
     for r in result["runs"]:
         if "error" in r:
@@ -119,7 +119,7 @@ def main():
         print("[bench_live] %-12s %4g %-9s %9s %7d %7d %6d %6d %6d %9s %7s" % (
             r["sequence"], r["rate"], "nodelet" if r["nodelet"] else "processes",
             fmt(r["cpu_per_data_s"]["total"], "%.3f"), d["windows_skipped"], d["packets_lost"], d["queue_full"],
-            d["resets"], d["mapping_events_dropped_waiting"], fmt(o["rot_rmse_deg_s"], "%.3f"),
+            d["resets"], d["mapping_events_thinned_waiting"], fmt(o["rot_rmse_deg_s"], "%.3f"),
             fmt(o["ate_percent_of_path"], "%.2f")))
     print("[bench_live] JSON in %s" % path)
     return 0 if all(r.get("ok") for r in result["runs"]) else 1

@@ -61,7 +61,7 @@ PATTERNS = {
     "mapping_node": {
         "keyframes": r"mapping_node: (\d+) keyframes",
         "keyframes_left_out": r"(\d+) left out by the rate limit",
-        "events_dropped_waiting": r"(\d+) dropped waiting",
+        "events_thinned_waiting": r"(\d+) thinned waiting",
         "events_not_covered": r"(\d+) not covered by the trajectory",
         "events_thinned": r"(\d+) thinned",
         "resets": r"(\d+) resets",

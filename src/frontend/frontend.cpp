@@ -502,11 +502,11 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
   return arc;
 }
 
-std::vector<ArcEstimate> Frontend::process() {
+std::vector<ArcEstimate> Frontend::process(size_t max_windows) {
   std::vector<ArcEstimate> arcs;
   EventVector window;
   int64_t t0, t1;
-  while (nextWindow(&window, &t0, &t1)) {
+  for (size_t n = 0; n < max_windows && nextWindow(&window, &t0, &t1); ++n) {
     const double previous_omega = last_omega_;
     const bool was_lost = lost_;
     bool scanned = false;

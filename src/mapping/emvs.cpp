@@ -336,9 +336,14 @@ void EmvsMapper::addEvents(const EventVector& events) {
     }
     pending_.push_back(e);
   }
-  while (pending_.size() > options_.max_pending_events) {
-    pending_.pop_front();
-    ++dropped_pending_;
+  if (pending_.size() > options_.max_pending_events) {
+    // The trajectory lags (a busy back-end): every second event waiting goes, evenly in time, so
+    // the keyframes it reaches later keep their whole time span at half the density (memory
+    // stays bounded, no keyframe loses its start).
+    size_t kept = 0;
+    for (size_t i = 1; i < pending_.size(); i += 2) pending_[kept++] = pending_[i];
+    thinned_pending_ += pending_.size() - kept;
+    pending_.resize(kept);
   }
 }
 

@@ -447,7 +447,7 @@ nlohmann::json OfflinePipeline::report() const {
         {"events_behind", map_counts_.skipped_behind},
         {"events_outside_sensor", map_counts_.skipped_outside},
         {"events_out_of_order", mapper_->droppedOutOfOrder()},
-        {"events_dropped_pending", mapper_->droppedPending()},
+        {"events_thinned_pending", mapper_->thinnedPending()},
         {"events_thinned", mapper_->thinned()},
         {"keyframes_left_out", mapper_->keyframesSkipped()},
         {"keyframe_points", map_counts_.points},

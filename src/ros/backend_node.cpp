@@ -32,7 +32,8 @@ void BackendNodeOptions::validate() const {
 BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, Hosting hosting)
     : nh_(nh), pnh_(pnh), hosting_(hosting) {
   readParameters();
-  events_sub_ = nh_.subscribe(topics::kEvents, 1000, &BackendNode::eventsCallback, this);
+  events_sub_ =
+      nh_.subscribe(topics::kEvents, kEventPacketQueue, &BackendNode::eventsCallback, this);
   camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &BackendNode::cameraInfoCallback, this);
   arcs_sub_ = nh_.subscribe(topics::kArcs, 1000, &BackendNode::arcCallback, this);
   if (node_options_.use_imu)

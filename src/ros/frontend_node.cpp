@@ -38,7 +38,8 @@ void FrontendNodeOptions::validate() const {
 FrontendNode::FrontendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh)
     : nh_(nh), pnh_(pnh) {
   readParameters();
-  events_sub_ = nh_.subscribe(topics::kEvents, 1000, &FrontendNode::eventsCallback, this);
+  events_sub_ =
+      nh_.subscribe(topics::kEvents, kEventPacketQueue, &FrontendNode::eventsCallback, this);
   camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &FrontendNode::cameraInfoCallback, this);
   if (node_options_.use_odom)
     odom_sub_ = nh_.subscribe(topics::kOdom, 200, &FrontendNode::odomCallback, this);
@@ -212,15 +213,23 @@ void FrontendNode::workerLoop() {
     FollowOptions follow;
     follow.follow_backend = node_options_.follow_backend;
     follower_ = FrontendFollower(follow, node_options_.use_odom);
+    BacklogPolicyOptions backlog;
+    backlog.max_latency_s = node_options_.max_latency_s;
+    backlog.window_s = frontend_options_.window_duration_s;
+    backlog.max_thinning = kMaxVolumeThinning;
+    backlog_ = BacklogPolicy(backlog);
   } catch (const std::exception& e) {
     ROS_ERROR("frontend_node: the front-end cannot start: %s", e.what());
     return;
   }
   last_status_ = ros::WallTime::now();
+  // One window per pass: the backlog, and with it the thinning, is looked at again after every
+  // window, with whatever arrived meanwhile.
   while (true) {
     std::deque<Input> batch;
-    if (!input_.takeAll(&batch, std::chrono::milliseconds(100))) break;
-    if (!batch.empty()) {
+    const bool pending = frontend_->pendingWindows() > 0;
+    if (!input_.takeAll(&batch, std::chrono::milliseconds(pending ? 0 : 100))) break;
+    if (!batch.empty() || pending) {
       const ros::WallTime start = ros::WallTime::now();
       for (const Input& input : batch) {
         switch (input.kind) {
@@ -238,37 +247,41 @@ void FrontendNode::workerLoop() {
             break;
         }
       }
+      if (newest_event_ns_ >= 0) backlog_.observeInput(start.toSec(), nsToSec(newest_event_ns_));
       const double window_s =
           frontend_options_.window_duration_s;  // by-count windows: an approximation
       const double backlog_s = frontend_->pendingWindows() * window_s;
-      // Behind by more than half of ~max_latency_s: the windows vote half their events, then a
-      // quarter (cheaper windows, none lost); back to all once the backlog is under one window.
-      // Whole windows are skipped only beyond ~max_latency_s.
+      // Behind: each next window votes half as many events as the one before, down to
+      // 1/kMaxVolumeThinning (cheaper windows, none lost). Whole windows are skipped only when
+      // even those are estimated slower than the events arrive (BacklogPolicy).
       const size_t thinning = frontend_->volumeThinning();
-      if (backlog_s > 0.5 * node_options_.max_latency_s && thinning < kMaxVolumeThinning) {
-        frontend_->setVolumeThinning(2 * thinning);
+      const size_t next = backlog_.nextThinning(backlog_s, thinning);
+      frontend_->setVolumeThinning(next);
+      if (next > thinning)
         ROS_WARN_THROTTLE(5,
                           "frontend_node: %.2f s of events behind: windows vote 1/%zu of "
                           "max_events_per_volume (%zu windows thinned so far)",
-                          backlog_s, 2 * thinning, frontend_->stats().windows_thinned);
-      } else if (backlog_s < window_s && thinning > 1) {
-        frontend_->setVolumeThinning(thinning / 2);
-      }
-      if (backlog_s > node_options_.max_latency_s) {
+                          backlog_s, next, frontend_->stats().windows_thinned);
+      if (backlog_.mustSkip(backlog_s, next)) {
         const size_t keep = std::max<size_t>(1, size_t(node_options_.max_latency_s / window_s));
         // The skipped windows go out as LOST arcs: the back-end holds its rates through them
         // instead of finding a gap in the arcs (a reset beyond its max_gap_s).
         std::vector<ArcEstimate> skipped;
         const size_t dropped = frontend_->dropBacklog(keep, &skipped);
         for (const ArcEstimate& arc : skipped) publishArc(arc);
-        ROS_WARN_THROTTLE(
-            5,
-            "frontend_node: %.2f s of events behind (> ~max_latency_s %.2f): %zu windows skipped "
-            "(%zu so far)",
-            backlog_s, node_options_.max_latency_s, dropped, frontend_->stats().windows_dropped);
+        ROS_WARN_THROTTLE(5,
+                          "frontend_node: %.2f s of events behind (> ~max_latency_s %.2f), "
+                          "windows estimated at %.2fx real time but events arriving at %.2fx: "
+                          "%zu windows skipped (%zu so far)",
+                          backlog_s, node_options_.max_latency_s, backlog_.progressRate(),
+                          backlog_.arrivalRate(), dropped, frontend_->stats().windows_dropped);
       }
-      for (const ArcEstimate& arc : frontend_->process()) publishArc(arc);
-      busy_wall_s_ += (ros::WallTime::now() - start).toSec();
+      const std::vector<ArcEstimate> arcs = frontend_->process(1);
+      for (const ArcEstimate& arc : arcs) publishArc(arc);
+      const double pass_s = (ros::WallTime::now() - start).toSec();
+      if (!arcs.empty())
+        backlog_.observeWindow(dtSec(arcs.back().t_end_ns, arcs.front().t_start_ns), pass_s);
+      busy_wall_s_ += pass_s;
     }
     if ((ros::WallTime::now() - last_status_).toSec() >= node_options_.status_period_s) logStatus();
   }
@@ -282,6 +295,7 @@ void FrontendNode::handleEvents(const EventVector& events, const std::string& re
     recent_events_.clear();
     newest_event_ns_ = -1;
     follower_.reset(events.front().t_ns);
+    backlog_.reset();
   }
   int64_t oldest = events.front().t_ns;
   for (const PixelEvent& e : events) oldest = std::min(oldest, e.t_ns);
@@ -296,6 +310,7 @@ void FrontendNode::handleEvents(const EventVector& events, const std::string& re
     recent_events_.clear();
     newest_event_ns_ = events.back().t_ns;
     follower_.reset(oldest);
+    backlog_.reset();
   } else {
     newest_event_ns_ = std::max(newest_event_ns_, events.back().t_ns);
   }

@@ -33,7 +33,8 @@ void MappingNodeOptions::validate() const {
 MappingNode::MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, Hosting hosting)
     : nh_(nh), pnh_(pnh), hosting_(hosting) {
   readParameters();
-  events_sub_ = nh_.subscribe(topics::kEvents, 1000, &MappingNode::eventsCallback, this);
+  events_sub_ =
+      nh_.subscribe(topics::kEvents, kEventPacketQueue, &MappingNode::eventsCallback, this);
   camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &MappingNode::cameraInfoCallback, this);
   trajectory_sub_ = nh_.subscribe(topics::kTrajectory, 5, &MappingNode::trajectoryCallback, this);
   points_pub_ = nh_.advertise<sensor_msgs::PointCloud2>(topics::kMapPoints, 10);
@@ -203,14 +204,14 @@ void MappingNode::handleEvents(const EventVector& events, const std::string& res
                       mapper_->droppedOutOfOrder());
     reported_out_of_order_ = mapper_->droppedOutOfOrder();
   }
-  if (mapper_->droppedPending() > reported_dropped_pending_) {
+  if (mapper_->thinnedPending() > reported_thinned_pending_) {
     ROS_WARN_THROTTLE(
         5,
-        "mapping_node: %zu events waited too long for %s (more than max_pending_events %zu "
-        "buffered): oldest dropped (%zu so far)",
-        mapper_->droppedPending() - reported_dropped_pending_, trajectory_sub_.getTopic().c_str(),
-        emvs_options_.max_pending_events, mapper_->droppedPending());
-    reported_dropped_pending_ = mapper_->droppedPending();
+        "mapping_node: %zu events waiting for %s (more than max_pending_events %zu buffered): "
+        "thinned to every second one, evenly in time (%zu so far)",
+        mapper_->thinnedPending() - reported_thinned_pending_, trajectory_sub_.getTopic().c_str(),
+        emvs_options_.max_pending_events, mapper_->thinnedPending());
+    reported_thinned_pending_ = mapper_->thinnedPending();
   }
   if (!spline_)
     ROS_INFO_THROTTLE(10, "mapping_node: %zu events buffered, waiting for %s",
@@ -277,10 +278,10 @@ void MappingNode::logStatus() {
       "points (%zu dropped); events: %zu voted (%zu thinned to the rate limit), %zu waiting, %zu "
       "not covered by the trajectory, %zu "
       "non-finite pose, %zu late, %zu "
-      "dropped waiting; %zu resets; busy %.1f s; input: %s",
+      "thinned waiting; %zu resets; busy %.1f s; input: %s",
       keyframes_, keyframes_empty_, mapper_->keyframesSkipped(), map_->size(), map_->dropped(),
       counts_.voted, mapper_->thinned(), mapper_->pendingEvents(), counts_.skipped_time,
-      counts_.skipped_nan, mapper_->droppedOutOfOrder(), mapper_->droppedPending(), resets_,
+      counts_.skipped_nan, mapper_->droppedOutOfOrder(), mapper_->thinnedPending(), resets_,
       busy_wall_s_, input_.statusLine().c_str());
   last_status_ = now;
 }

@@ -342,6 +342,30 @@ TEST(Emvs, EventsAfterTheFinalTimeWaitForTheTrajectory) {
   EXPECT_EQ(kf.counts.voted, wall().events.size());
 }
 
+TEST(Emvs, EventsWaitingTooLongAreThinnedEvenlyNotCut) {
+  // A trajectory that lags: the buffer is thinned to every second event whenever it overflows,
+  // so it keeps the whole time span (the keyframe it waits for keeps its start) in bounded memory.
+  EmvsOptions o = unitOptions();
+  o.kf_distance_m = 1.0;
+  o.max_pending_events = wall().events.size() / 5;
+  EmvsMapper mapper(o, camera());
+  for (size_t i = 0; i < wall().events.size(); i += 1000) {
+    const size_t end = std::min(wall().events.size(), i + 1000);
+    mapper.addEvents(
+        EventVector(wall().events.begin() + long(i), wall().events.begin() + long(end)));
+    ASSERT_LE(mapper.pendingEvents(), o.max_pending_events + 1000);
+  }
+  EXPECT_GT(mapper.thinnedPending(), 0u);
+  EXPECT_EQ(mapper.pendingEvents() + mapper.thinnedPending(), wall().events.size());
+  mapper.process(poseFunction(wall().truth), std::numeric_limits<int64_t>::max());
+  EmvsKeyframe kf;
+  ASSERT_TRUE(mapper.finish(&kf));
+  EXPECT_EQ(kf.counts.events, wall().events.size() - mapper.thinnedPending());
+  // The keyframe spans the events' whole time: its first event is within the first 2 % of it.
+  const int64_t t0 = wall().events.front().t_ns, t1 = wall().events.back().t_ns;
+  EXPECT_LT(dtSec(kf.t_begin_ns, t0), 0.02 * dtSec(t1, t0));
+}
+
 TEST(Emvs, RateLimitKeepsEventsEvenlyAndCountsTheRest) {
   // Thinning events, not keyframes. 100k events/s for 1 s, limited to 30k events/s: 30k kept
   // (within the 10 ms burst), as many in each half second, the rest counted as thinned.

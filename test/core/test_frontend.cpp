@@ -6,6 +6,7 @@
 #include <random>
 
 #include "../common/synthetic_events.h"
+#include "vwe_vo/frontend/backlog_policy.h"
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/io/config.h"
 #include "vwe_vo/vwe/ray_builder.h"
@@ -473,4 +474,93 @@ TEST(Frontend, OneSidedDepthIsWhereTheRaysOfTheBusierUpperSideMeet) {
   addPoints(400, 220, 330, 20, 90, 7.0);
   volume.vote(rays);
   EXPECT_NEAR(1.0 / oneSidedDepth(volume, rays, horizon), 1.0 / 7.0, spacing);
+}
+
+// ---------------------------------------------------------------------------------------------
+// BacklogPolicy: a live front-end behind its input thins before it skips, and skips only when
+// the thinned windows cannot keep pace.
+
+namespace {
+
+BacklogPolicyOptions backlogOptions() {
+  BacklogPolicyOptions o;
+  o.max_latency_s = 1.0;
+  o.window_s = 0.3;
+  o.max_thinning = 16;
+  o.rate_horizon_s = 2.0;
+  o.hard_latency_factor = 4.0;
+  return o;
+}
+
+// Input arriving at `rate` data seconds per wall second for `wall_s`, sampled every 10 ms.
+void feed(BacklogPolicy* p, double wall0, double data0, double rate, double wall_s) {
+  for (double w = 0; w <= wall_s + 1e-9; w += 0.01) p->observeInput(wall0 + w, data0 + rate * w);
+}
+
+}  // namespace
+
+TEST(BacklogPolicy, MeasuresTheArrivalRateOverItsHorizonAndForgetsAJumpBack) {
+  BacklogPolicy p(backlogOptions());
+  EXPECT_LT(p.arrivalRate(), 0);  // nothing yet
+  feed(&p, 100.0, 5.0, 0.5, 0.5);
+  EXPECT_LT(p.arrivalRate(), 0);  // less than half the horizon seen
+  feed(&p, 100.5, 5.25, 2.0, 3.0);
+  EXPECT_NEAR(p.arrivalRate(), 2.0, 0.02);  // the 0.5 rate left the 2 s horizon
+  p.observeInput(103.6, 1.0);               // a bag looped: the data time went back
+  EXPECT_LT(p.arrivalRate(), 0);
+}
+
+TEST(BacklogPolicy, ThinsWhileBehindUntilTheWindowsWorkTheBacklogOff) {
+  BacklogPolicy p(backlogOptions());
+  // Rates unknown: every window halves its events while more than half a second waits.
+  EXPECT_EQ(p.nextThinning(0.6, 1), 2u);
+  EXPECT_EQ(p.nextThinning(0.6, 8), 16u);
+  EXPECT_EQ(p.nextThinning(0.6, 16), 16u);  // the coarsest
+  EXPECT_EQ(p.nextThinning(0.4, 4), 4u);    // under half a second: held
+  EXPECT_EQ(p.nextThinning(0.2, 4), 2u);    // under one window: back towards all events
+  EXPECT_EQ(p.nextThinning(0.0, 1), 1u);
+  // Events at 2x real time; windows estimated at 3.5x: 0.9 s of backlog drains in
+  // 0.9 / (3.5 - 2) = 0.6 s of wall time, within max_latency_s: no coarser than 2.
+  feed(&p, 0.0, 0.0, 2.0, 2.0);
+  for (int i = 0; i < 10; ++i) p.observeWindow(0.3, 0.3 / 3.5);
+  EXPECT_NEAR(p.progressRate(), 3.5, 1e-9);
+  EXPECT_EQ(p.nextThinning(0.9, 2), 2u);
+  EXPECT_EQ(p.nextThinning(0.9, 1), 2u);  // all events: always the first halving
+  // At 2.5x the same backlog would take 1.8 s: coarser.
+  for (int i = 0; i < 40; ++i) p.observeWindow(0.3, 0.3 / 2.5);
+  EXPECT_EQ(p.nextThinning(0.9, 2), 4u);
+}
+
+TEST(BacklogPolicy, SkipsOnlyWhenTheCoarsestWindowsCannotKeepPace) {
+  BacklogPolicy p(backlogOptions());
+  // Rates unknown (start-up): beyond max_latency_s at the coarsest thinning, skip.
+  EXPECT_TRUE(p.mustSkip(1.5, 16));
+  EXPECT_FALSE(p.mustSkip(1.5, 8));   // coarser windows first
+  EXPECT_FALSE(p.mustSkip(0.9, 16));  // within max_latency_s
+  // A burst: a stalled player sent 3 s of events at once; over the horizon they still arrive
+  // at 2x, and the coarsest windows are estimated at 6x: they work it off, nothing skipped.
+  feed(&p, 0.0, 0.0, 2.0, 2.0);
+  for (int i = 0; i < 10; ++i) p.observeWindow(0.3, 0.05);
+  EXPECT_FALSE(p.mustSkip(3.0, 16));
+  EXPECT_TRUE(p.mustSkip(4.5, 16));  // beyond 4 x max_latency_s: skipped regardless
+  EXPECT_TRUE(p.mustSkip(4.5, 1));
+  // Sustained overload: the coarsest windows at 1.5x against events at 2x never catch up.
+  for (int i = 0; i < 40; ++i) p.observeWindow(0.3, 0.2);
+  EXPECT_NEAR(p.progressRate(), 1.5, 1e-3);  // the running mean forgets 6x by 0.75^40
+  EXPECT_TRUE(p.mustSkip(1.2, 16));
+  p.reset();
+  EXPECT_LT(p.progressRate(), 0);
+  EXPECT_LT(p.arrivalRate(), 0);
+}
+
+TEST(BacklogPolicy, RefusesOptionsThatCannotWork) {
+  BacklogPolicyOptions o = backlogOptions();
+  o.max_latency_s = 0;
+  EXPECT_THROW(BacklogPolicy{o}, std::invalid_argument);
+  o = backlogOptions();
+  o.max_thinning = 0;
+  EXPECT_THROW(BacklogPolicy{o}, std::invalid_argument);
+  o = backlogOptions();
+  o.hard_latency_factor = 0.5;
+  EXPECT_THROW(BacklogPolicy{o}, std::invalid_argument);
 }

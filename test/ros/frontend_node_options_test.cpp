@@ -1,6 +1,6 @@
 // frontend_node parameters: ~calibration (no camera_info is ever published), ~use_odom (the arc's
 // speed and standstill come from /odom), an integer ~nominal_speed, and ~max_latency_s (a burst of
-// data faster than the node can process skips whole windows, counted, and the node recovers).
+// data more than 4 x ~max_latency_s behind skips whole windows, counted, and the node recovers).
 #include "frontend_node_harness.h"
 
 using namespace vwe_vo;
@@ -43,7 +43,7 @@ TEST_F(FrontendNodeOptions, FallingBehindSkipsWindowsAndRecovers) {
   StreamOptions burst;
   burst.odom_speed = kV;
   burst.burst = true;
-  const auto [b0, b1] = harness->stream(4.0, burst);  // ~13 windows at once, max_latency_s 0.5
+  const auto [b0, b1] = harness->stream(4.0, burst);  // ~13 windows at once, max_latency_s 0.1
   EXPECT_TRUE(harness->logged("windows skipped", rosgraph_msgs::Log::WARN, 10.0));
   const std::vector<AckermannArc> burst_arcs = harness->arcsIn(b0, b1, 1, 10.0);
   EXPECT_GE(burst_arcs.size(), 1u);

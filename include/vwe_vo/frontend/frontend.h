@@ -135,8 +135,10 @@ class Frontend {
   /// Gyro yaw rate of base_link at t (optional input).
   void addGyro(int64_t t_ns, double yaw_rate_rad_s);
 
-  /// Estimates every window that is complete. Returns the new arcs (also kept for the pose).
-  std::vector<ArcEstimate> process();
+  /// Estimates the complete windows, oldest first, at most `max_windows` of them (a node takes
+  /// one at a time to look at its backlog in between). Returns the new arcs (also kept for the
+  /// pose).
+  std::vector<ArcEstimate> process(size_t max_windows = std::numeric_limits<size_t>::max());
   /// Skips every complete window but the newest `keep` (a node that falls behind); counted.
   /// Each skipped window becomes a kLost arc in `skipped` (if given) at the last yaw rate and the
   /// window's /odom speed (0 without /odom: the dead reckoning holds its position), so whoever

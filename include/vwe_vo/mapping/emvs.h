@@ -51,7 +51,7 @@ struct EmvsOptions {
   double kf_rotation_deg = 15.0;   // ... or this much rotation [deg]
   size_t max_events_per_keyframe = 2000000;  // ... or this many events (bounds time and memory)
   size_t max_pending_events =
-      8000000;  // events waiting for the trajectory; the oldest are dropped beyond
+      8000000;  // events waiting for the trajectory; beyond, they are thinned to every second one
   double max_event_rate_hz = 500000.0;  // vote at most this many events per second (evenly over
                                         // time, the others counted as thinned); 0 = all
   bool rate_limit_whole_keyframes =
@@ -146,7 +146,8 @@ class EmvsMapper {
   bool hasKeyframe() const { return active_; }
   size_t pendingEvents() const { return pending_.size(); }
   size_t droppedOutOfOrder() const { return dropped_out_of_order_; }
-  size_t droppedPending() const { return dropped_pending_; }
+  /// Events thinned out of the buffer that waits for the trajectory (max_pending_events).
+  size_t thinnedPending() const { return thinned_pending_; }
   /// Events left out to stay within max_event_rate_hz (also those of keyframes left out).
   size_t thinned() const { return thinned_; }
   /// Keyframes left out whole to stay within max_event_rate_hz (rate_limit_whole_keyframes).
@@ -177,7 +178,7 @@ class EmvsMapper {
   std::unique_ptr<ProjectiveVolume> volume_;
   ThreadPool pool_;  // ray building
   std::deque<PixelEvent> pending_;
-  size_t dropped_out_of_order_ = 0, dropped_pending_ = 0, num_keyframes_ = 0, thinned_ = 0;
+  size_t dropped_out_of_order_ = 0, thinned_pending_ = 0, num_keyframes_ = 0, thinned_ = 0;
   size_t keyframes_skipped_ = 0;
   // Token bucket of max_event_rate_hz: events earn a vote as time passes (at most 10 ms worth;
   // with rate_limit_whole_keyframes at most 1 s worth, spent a keyframe at a time).

@@ -20,6 +20,7 @@
 #include "vwe_vo/SplineTrajectory.h"
 #include "vwe_vo/backend/backend_driver.h"
 #include "vwe_vo/common/math.h"
+#include "vwe_vo/frontend/backlog_policy.h"
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/ros/node_input.h"
 #include "vwe_vo/sensor/camera.h"
@@ -28,9 +29,11 @@
 
 namespace vwe_vo {
 
-/// The front-end's thinning when it falls behind: its windows vote down to 1/4 of
-/// max_events_per_volume before whole windows are skipped (~max_latency_s).
-constexpr size_t kMaxVolumeThinning = 4;
+/// The front-end's coarsest thinning when it falls behind: its windows vote down to 1/16 of
+/// max_events_per_volume (500 of vwe_vo.yaml's 8000) before whole windows may be skipped
+/// (~max_latency_s, BacklogPolicy). Each halving is taken only while the windows do not work the
+/// backlog off, so a short overload costs little accuracy and a long one loses no window.
+constexpr size_t kMaxVolumeThinning = 16;
 
 /// Everything the node reads from the parameter server, once, at start-up.
 struct FrontendNodeOptions {
@@ -106,6 +109,7 @@ class FrontendNode {
   std::unique_ptr<VweImageRenderer> renderer_;
   EventVector recent_events_;     // events kept for the VWE image (only while it is watched)
   int64_t newest_event_ns_ = -1;  // for the size of a backwards jump
+  BacklogPolicy backlog_;         // thinning and skipping when behind (worker)
   FrontendFollower follower_;     // the anchor on the back-end's odom and the speed it gives
   size_t windows_ok_ = 0, windows_standstill_ = 0, windows_lost_ = 0, windows_low_ = 0;
   size_t reported_out_of_order_ = 0;

@@ -95,7 +95,7 @@ class MappingNode {
   size_t resets_ = 0, keyframes_ = 0, keyframes_empty_ = 0;
   EmvsCounts counts_;  // summed over keyframes
   size_t reported_skipped_time_ = 0, reported_skipped_nan_ = 0, reported_out_of_order_ = 0,
-         reported_dropped_pending_ = 0;
+         reported_thinned_pending_ = 0;
   bool map_changed_ = false;
   ros::WallTime last_events_wall_, last_cloud_wall_, last_status_;
   double busy_wall_s_ = 0.0;
