@@ -41,7 +41,7 @@ struct EmvsOptions {
   double local_max_ratio =
       0.3;  // and confidence >= this fraction of the maximum in the window below; 0 = off
   int local_max_window_px = 15;  // ... window [grid px], odd
-  int median_filter_size = 5;    // masked median of the depth map [grid px], odd; 1 = off
+  int median_filter_size = 7;    // masked median of the depth map [grid px], odd; 1 = off
   bool subpixel = true;      // refine the argmax between planes (peak centroid in inverse depth)
   double max_depth_m = 8.0;  // drop points deeper than this [m]
   double outlier_radius_m = 0.2;   // radius outlier removal: neighbourhood radius [m] (the cloud is
