@@ -336,7 +336,7 @@ void EmvsMapper::addEvents(const EventVector& events) {
     }
     pending_.push_back(e);
   }
-  if (pending_.size() > options_.max_pending_events) {
+  while (pending_.size() > options_.max_pending_events) {
     // The trajectory lags (a busy back-end): every second event waiting goes, evenly in time, so
     // the keyframes it reaches later keep their whole time span at half the density (memory
     // stays bounded, no keyframe loses its start).
