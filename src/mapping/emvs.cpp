@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "vwe_vo/sensor/subsample.h"
 #include "vwe_vo/vwe/ray_builder.h"
 
 namespace vwe_vo {
@@ -340,10 +341,7 @@ void EmvsMapper::addEvents(const EventVector& events) {
     // The trajectory lags (a busy back-end): every second event waiting goes, evenly in time, so
     // the keyframes it reaches later keep their whole time span at half the density (memory
     // stays bounded, no keyframe loses its start).
-    size_t kept = 0;
-    for (size_t i = 1; i < pending_.size(); i += 2) pending_[kept++] = pending_[i];
-    thinned_pending_ += pending_.size() - kept;
-    pending_.resize(kept);
+    thinned_pending_ += keepEverySecond(&pending_);
   }
 }
 

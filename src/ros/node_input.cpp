@@ -286,15 +286,6 @@ void NodeInputBase::recoverThinningLocked(size_t taken_events) {
   }
 }
 
-size_t NodeInputBase::halve(EventVector* events) {
-  const size_t n = events->size();
-  if (n < 2) return 0;
-  size_t kept = 0;
-  for (size_t i = 1; i < n; i += 2) (*events)[kept++] = (*events)[i];
-  events->resize(kept);
-  return n - kept;
-}
-
 void NodeInputBase::warnDropped(InputKind kind) {
   size_t dropped = 0, bound = 0;
   Overflow overflow;

@@ -34,6 +34,7 @@
 #include "vwe_vo/EventArray.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
+#include "vwe_vo/sensor/subsample.h"
 #include "vwe_vo/sensor/timestamp_policy.h"
 
 namespace vwe_vo {
@@ -152,9 +153,6 @@ class NodeInputBase {
   void stepThinningLocked();
   /// After the worker took its batch (mutex_ held): the fraction recovers.
   void recoverThinningLocked(size_t taken_events);
-  /// Keeps every second event of `events` (from the second: the first and the last events of a
-  /// packet keep their times within one event); returns the events removed.
-  static size_t halve(EventVector* events);
   /// Counts an arrival (event packets are counted by acceptEventPacket) and decides whether it may
   /// be queued; the caller holds mutex_. `size` is the item's weight against its kind's bound
   /// (events for kEvents, 1 otherwise); an item alone in its kind's queue always fits. Returns
@@ -245,12 +243,12 @@ class NodeInput : public NodeInputBase {
         stepThinningLocked();
         for (Slot& s : queue_) {
           if (s.kind != InputKind::kEvents) continue;
-          const size_t removed = halve(&s.item.events);
+          const size_t removed = keepEverySecond(&s.item.events);
           s.size -= removed;
           queued_[k] -= removed;
           counters_.events_thinned += removed;
         }
-        counters_.events_thinned += halve(&events);
+        counters_.events_thinned += keepEverySecond(&events);
       }
       // A queue still full at the coarsest thinning: the oldest packets go.
       for (auto it = queue_.begin();

@@ -10,6 +10,19 @@
 
 namespace vwe_vo {
 
+/// Keeps every second event of `events` (a vector or deque of events, in time order), in place,
+/// from the second: the overload policies' halving, evenly in time (the first and the last
+/// events keep their times within one event). Returns how many went.
+template <typename Events>
+size_t keepEverySecond(Events* events) {
+  const size_t n = events->size();
+  if (n < 2) return 0;
+  size_t kept = 0;
+  for (size_t i = 1; i < n; i += 2) (*events)[kept++] = (*events)[i];
+  events->resize(kept);
+  return n - kept;
+}
+
 /// Deterministic uniform subsampling to at most max_events (every k-th event on a fractional
 /// stride, the phase chosen from seed). Returns the input unchanged if it is small enough.
 EventVector subsampleEvents(const EventVector& events, size_t max_events, uint64_t seed);
