@@ -20,6 +20,11 @@ inline void addVote(float* plane, size_t idx, size_t W, float ax, float ay) {
   plane[idx + W] += (1 - ax) * ay;
   plane[idx + W + 1] += ax * ay;
 }
+
+/// The squares of one bilinear vote's weights, summed: ((1-ax)^2 + ax^2) ((1-ay)^2 + ay^2).
+inline float selfSquares(float ax, float ay) {
+  return ((1 - ax) * (1 - ax) + ax * ax) * ((1 - ay) * (1 - ay) + ay * ay);
+}
 }  // namespace
 
 const char* contrastName(Contrast contrast) {
@@ -136,11 +141,13 @@ size_t ProjectiveVolume::vote(const std::vector<VolumeRay>& rays) {
   const int group = many_rays ? kPlaneGroup : 1;
   const int num_groups = (L + group - 1) / group;
   plane_counts_.assign(size_t(num_groups), 0);
+  plane_self_.assign(size_t(num_groups), 0.0);
   soa_.assign(rays);
   const size_t N = rays.size(), plane_voxels = W * height_;
   pool_.run(num_groups, [&](int chunk, int) {
     const int l0 = chunk * group, l1 = std::min(L, l0 + group);
     size_t n = 0;
+    double self = 0.0;
     // A block of rays serves the group's planes while its columns are in cache. Only the four
     // read-modify-writes per vote: the sum of squares is gathered by clear().
     constexpr size_t kBlock = 1024;
@@ -148,15 +155,20 @@ size_t ProjectiveVolume::vote(const std::vector<VolumeRay>& rays) {
       for (int l = l0; l < l1; ++l) {
         float* plane = g + size_t(l) * plane_voxels;
         const size_t e = std::min(N, b + kBlock);
+        float block_self = 0.0f;
         forEachPlaneVoteBatched(float(rho_[l]), b, e, [&](size_t, size_t idx, float ax, float ay) {
           addVote(plane, idx, W, ax, ay);
+          block_self += selfSquares(ax, ay);
           ++n;
         });
+        self += double(block_self);
       }
     plane_counts_[size_t(chunk)] = n;
+    plane_self_[size_t(chunk)] = self;
   });
   size_t votes = 0;
   for (size_t n : plane_counts_) votes += n;
+  for (double q : plane_self_) self_ += q;
   sum_ += double(votes);  // every vote adds weights summing to one
   last_votes_ += votes;
   return votes;
@@ -165,11 +177,12 @@ size_t ProjectiveVolume::vote(const std::vector<VolumeRay>& rays) {
 double ProjectiveVolume::contrast() const {
   double q = 0.0;
   for (float v : grid_) q += double(v) * v;
-  return contrastOf(q, sum_);
+  return contrastOf(q, sum_, self_);
 }
 
-double ProjectiveVolume::contrastOf(double sum_squares, double sum) const {
-  if (options_.contrast == Contrast::kDensityPerVote) return sum > 0 ? sum_squares / sum : 0.0;
+double ProjectiveVolume::contrastOf(double sum_squares, double sum, double self_squares) const {
+  if (options_.contrast == Contrast::kDensityPerVote)
+    return sum > 0 ? (sum_squares - self_squares) / sum : 0.0;
   const double n = double(numVoxels());
   const double mean = sum / n;
   return sum_squares / n - mean * mean;
@@ -191,7 +204,11 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
   }
   plane_counts_.assign(size_t(L), 0);
   plane_squares_.assign(size_t(L), 0.0);
+  plane_self_.assign(size_t(L), 0.0);
   soa_.assign(rays);
+  // The density per vote leaves out each vote's own weights (see Contrast): their squares, and
+  // in the sensitivities their derivatives d|w|^2/du = (4 ax - 2) ((1-ay)^2 + ay^2) (v alike).
+  const bool others_only = options_.contrast == Contrast::kDensityPerVote;
   pool_.run(num_chunks, [&](int c, int t) {
     float* g = scratch_[size_t(t)].data();
     const int l0 = L * c / num_chunks, l1 = L * (c + 1) / num_chunks;
@@ -201,7 +218,7 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
       if (!sensitivities) {
         // The sum of squares is gathered while voting: adding w to a voxel that holds V adds
         // w (2 V + w) to sum V^2. Afterwards the plane only needs zeroing.
-        double q0 = 0.0, q1 = 0.0;
+        double q0 = 0.0, q1 = 0.0, self = 0.0;
         forEachPlaneVoteBatched(rho, 0, soa_.size, [&](size_t, size_t idx, float ax, float ay) {
           float* c0 = g + idx;
           float* c1 = c0 + W;
@@ -210,11 +227,13 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
           const float v00 = c0[0], v10 = c0[1], v01 = c1[0], v11 = c1[1];
           q0 += double(w00 * (2 * v00 + w00) + w10 * (2 * v10 + w10));
           q1 += double(w01 * (2 * v01 + w01) + w11 * (2 * v11 + w11));
+          self += double(w00 * w00 + w10 * w10 + w01 * w01 + w11 * w11);
           c0[0] = v00 + w00, c0[1] = v10 + w10, c1[0] = v01 + w01, c1[1] = v11 + w11;
           ++n;
         });
         plane_counts_[size_t(l)] = n;
         plane_squares_[size_t(l)] = q0 + q1;
+        plane_self_[size_t(l)] = self;
         zeroPlane(g, rho, n);
         continue;
       }
@@ -228,22 +247,33 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
       // squares: sum_voxels V^2 = sum_votes sum_c w_c V_c (every V is the sum of its votes' w).
       Eigen::Vector4d* acc = chunk_sens_[size_t(c)].data();
       const double drho = rho_[l];
-      double q = 0.0;
+      double q = 0.0, self = 0.0;
       forEachPlaneVoteBatched(rho, 0, soa_.size, [&](size_t i, size_t idx, float ax, float ay) {
         const float v00 = g[idx], v10 = g[idx + 1], v01 = g[idx + W], v11 = g[idx + W + 1];
         const float top = v00 + (v10 - v00) * ax, bottom = v01 + (v11 - v01) * ax;
         q += double(top + (bottom - top) * ay);
-        const double gu = double((v10 - v00) * (1 - ay) + (v11 - v01) * ay);
-        const double gv = double((v01 - v00) * (1 - ax) + (v11 - v10) * ax);
+        double gu = double((v10 - v00) * (1 - ay) + (v11 - v01) * ay);
+        double gv = double((v01 - v00) * (1 - ax) + (v11 - v10) * ax);
+        if (others_only) {
+          const float sx = (1 - ax) * (1 - ax) + ax * ax, sy = (1 - ay) * (1 - ay) + ay * ay;
+          self += double(sx * sy);
+          gu -= double((2 * ax - 1) * sy);
+          gv -= double((2 * ay - 1) * sx);
+        }
         acc[i] += Eigen::Vector4d(gu, gu * drho, gv, gv * drho);
       });
       plane_squares_[size_t(l)] = q;
+      plane_self_[size_t(l)] = self;
       zeroPlane(g, rho, n);
     }
   });
   size_t n = 0;
-  double q = 0.0;
-  for (int l = 0; l < L; ++l) n += plane_counts_[size_t(l)], q += plane_squares_[size_t(l)];
+  double q = 0.0, self = 0.0;
+  for (int l = 0; l < L; ++l) {
+    n += plane_counts_[size_t(l)];
+    q += plane_squares_[size_t(l)];
+    self += plane_self_[size_t(l)];
+  }
   if (votes) *votes = n;
   if (sensitivities) {
     // d(sum V^2) = 2 sum_votes grad V . du; sum V = n does not move (see the header).
@@ -255,7 +285,7 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
       for (size_t i = 0; i < N; ++i) (*sensitivities)[i] += acc[i];
     for (Eigen::Vector4d& s : *sensitivities) s *= scale;
   }
-  return contrastOf(q, double(n));
+  return contrastOf(q, double(n), self);
 }
 
 void ProjectiveVolume::zeroPlane(float* plane, float rho, size_t votes) const {
@@ -318,8 +348,9 @@ double ProjectiveVolume::clear(const std::vector<VolumeRay>& rays) {
   });
   double q = 0.0;
   for (double p : plane_squares_) q += p;
-  const double c = contrastOf(q, sum_);
+  const double c = contrastOf(q, sum_, self_);
   sum_ = 0.0;
+  self_ = 0.0;
   last_votes_ = 0;
   return c;
 }

@@ -138,7 +138,8 @@ double refinedRpeDeg(const Scene& sc, const std::vector<ArcEstimate>& arcs, cons
 
 /// The multi-volume objective by brute force in double precision, independent of the voting
 /// kernel: rays from the spline, bilinear votes into a dense double grid with the volume's
-/// geometry, the contrast per volume (VolumeOptions::contrast), summed. The kernel votes in
+/// geometry, the contrast per volume (VolumeOptions::contrast; the density per vote without
+/// each vote's own squared weights), summed. The kernel votes in
 /// float, whose rounding is larger than the change a step of 1e-7 m makes: central differences
 /// are taken of this reference.
 /// slice_ns > 0: every event takes the pose at the middle of its slice of that length on the
@@ -151,6 +152,7 @@ double referenceObjective(const CameraModel& cam, const ProjectiveVolume& volume
   double total = 0.0;
   for (const BackendVolume& bv : volumes) {
     std::fill(grid.begin(), grid.end(), 0.0);
+    double self = 0.0;  // the votes' own squared weights
     const BSplineCameraModel model(std::make_shared<BSpline>(spline), testExtrinsics(),
                                    bv.t_ref_ns);
     for (const PixelEvent& e : bv.events) {
@@ -178,13 +180,14 @@ double referenceObjective(const CameraModel& cam, const ProjectiveVolume& volume
         c[1] += ax * (1 - ay);
         c[W] += (1 - ax) * ay;
         c[W + 1] += ax * ay;
+        for (double w : {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay}) self += w * w;
       }
     }
     double sum = 0.0, sq = 0.0;
     for (double g : grid) sum += g, sq += g * g;
     const double n = double(grid.size());
     total += volume.options().contrast == Contrast::kVariance ? sq / n - (sum / n) * (sum / n)
-                                                              : sq / sum;
+                                                              : (sq - self) / sum;
   }
   return total;
 }

@@ -110,13 +110,13 @@ void expectIndoorTargets(const PipelineRun& r, double max_rot_rmse_deg_s,
 
 }  // namespace
 
-// Measured: back-end 0.180 deg/s against the front-end's 0.273 (34 % lower), translation
-// direction 0.099 deg/s, ATE 0.06 %.
+// Measured: back-end 0.133 deg/s against the front-end's 0.270 (51 % lower), translation
+// direction 0.072 deg/s, ATE 0.04 %.
 TEST(BackendAccuracy, IndoorCircle) {
   expectIndoorTargets(run("indoor_circle"), 0.24, 0.14, 0.09);
 }
 
-// Measured: 0.219 against 0.361 (39 % lower), translation direction 0.157 deg/s, ATE 0.13 %.
+// Measured: 0.199 against 0.383 (48 % lower), translation direction 0.155 deg/s, ATE 0.12 %.
 TEST(BackendAccuracy, IndoorLongWithStandstill) {
   expectIndoorTargets(run("indoor_long"), 0.29, 0.21, 0.18);
 }
@@ -129,25 +129,28 @@ TEST(BackendAccuracy, IndoorDriveStopsInBendsOnAnUnevenFloor) {
   const PipelineRun r = run("indoor_drive");
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_GE(r.backend.tracked_fraction, 0.95);
-  EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 0.25);        // measured 0.190
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.23);  // measured 0.172
+  EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 0.2);         // measured 0.156
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.22);  // measured 0.167
   std::printf("[backend accuracy] indoor_drive: yaw RPE %.3f deg/s\n",
               r.backend.rpe.yaw_rmse_deg_s);
 }
 
-// Measured: back-end 0.246 deg/s against the front-end's 0.305 (19 % lower), translation
-// direction 0.137 deg/s, ATE 0.04 %, scale per 10 m 0.993-1.007. The ratio moves with where the
-// windows fall (subsampling seed, bag start), so the street asks for 10 % below the front-end.
+// Measured: back-end 0.587 deg/s against the front-end's 0.675 (13 % lower), translation
+// direction 0.318 deg/s, ATE 0.22 %, scale per 10 m 1.000-1.018. On the straights of this street
+// (true yaw rate exactly zero) the 1 s volumes place the yaw to about 1 deg/s; the 0.246 measured
+// here before came from the density per vote counting each vote's own weights, which made a
+// spike at zero yaw rate (see Contrast). The ratio moves with where the windows fall
+// (subsampling seed, bag start), so the street asks for 5 % below the front-end.
 TEST(BackendAccuracy, StreetLongWithTheCarConfig) {
   // A car at 5-8 m/s with 90-degree turns; config/car.yaml (its mount, one-sided windows with
   // planes from 10 m where the facade is deep enough). The scale comes from the wheel speed: no
   // drift along 250 m.
   const PipelineRun r = run("street_long", "car.yaml");
   EXPECT_EQ(r.nonfinite_poses, 0u);
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.9 * r.frontend.rpe.rot_rmse_deg_s);  // measured 0.81
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.33);                                 // measured 0.246
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.19);                           // measured 0.137
-  EXPECT_LE(r.backend.ate_percent_of_path, 0.07);                                // measured 0.04
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.95 * r.frontend.rpe.rot_rmse_deg_s);  // measured 0.87
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.72);                                  // measured 0.587
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.4);                             // measured 0.318
+  EXPECT_LE(r.backend.ate_percent_of_path, 0.3);                                  // measured 0.22
   ASSERT_GE(r.backend.scale_drift.ratios.size(), 20u);
   EXPECT_LE(r.backend.scale_drift.max_ratio / r.backend.scale_drift.min_ratio,
             1.023);  // measured 1.015
@@ -157,26 +160,29 @@ TEST(BackendAccuracy, StreetLongStartedLate) {
   // The same street with the system started 0.25 s into it: every window falls elsewhere. The
   // halves of a split window once rescanned the full range there and won spurious peaks 26-68
   // deg/s off on straight driving (vwe_vo_offline --start 0.25 on the bag: 2.0 deg/s).
+  // Started there, the back-end only matches the front-end on the straights (see above).
   const PipelineRun r = run("street_long", "car.yaml", 0.25);
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_LE(r.backend.rpe.rot_rmse_deg_s,
-            r.frontend.rpe.rot_rmse_deg_s);        // measured 0.268 vs 0.301
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.36);   // measured 0.268
-  EXPECT_LE(r.backend.ate_percent_of_path, 0.07);  // measured 0.04
+            1.05 * r.frontend.rpe.rot_rmse_deg_s);  // measured 0.686 vs 0.679
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.82);    // measured 0.686
+  EXPECT_LE(r.backend.ate_percent_of_path, 0.4);    // measured 0.30
 }
 
 // A car weaving in the right lane of a street (5.6-9.4 m/s, lane changes, a bend; the flat twin:
 // yaw is all that is estimated). The facades are asymmetric: with front-end planes that ended
 // at 60 m, each side's distant facade pulled the yaw towards itself and the busier side won
-// (front-end 0.76 x true + 0.6 deg/s on the bag). Measured: front-end 1.480, back-end 1.353
-// deg/s, translation direction 0.730 deg/s (planes ending at 60 m: 1.917, 1.766, 0.940).
+// (front-end 0.76 x true + 0.6 deg/s on the bag). Measured: front-end 1.493, back-end 1.241
+// deg/s, translation direction 0.670 deg/s (with each vote's own weights in the density, whose
+// spike at zero yaw rate held 26 of 171 windows at zero on the bag: 1.480, 1.353, 0.730; planes
+// ending at 60 m as well: 1.917, 1.766, 0.940).
 TEST(BackendAccuracy, StreetDriveWeavingInTheRightLane) {
   const PipelineRun r = run("street_drive_flat", "car.yaml");
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_GE(r.backend.tracked_fraction, 0.95);
   EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, r.frontend.rpe.yaw_rmse_deg_s);
-  EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 1.6);
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.88);
+  EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 1.45);
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.8);
 }
 
 // The car on its suspension (pitch/roll 1-2 deg, bumps, braking dives) with the DAVIS's IMU: the

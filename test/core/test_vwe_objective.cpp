@@ -58,7 +58,10 @@ VolumeOptions volumeOptions(int threads, Contrast contrast = Contrast::kDensityP
 }
 
 /// The contrast of the grid's voxels by brute force, independent of ProjectiveVolume's sums.
-double bruteForceContrast(const ProjectiveVolume& volume, Contrast contrast, double* sum) {
+/// The contrast of the grid the rays voted; the density per vote leaves out each vote's own
+/// squared weights, recomputed here from the rays' vote positions in double.
+double bruteForceContrast(const ProjectiveVolume& volume, const std::vector<VolumeRay>& rays,
+                          Contrast contrast, double* sum) {
   double s = 0, q = 0;
   for (float v : volume.data()) {
     s += v;
@@ -66,7 +69,57 @@ double bruteForceContrast(const ProjectiveVolume& volume, Contrast contrast, dou
   }
   *sum = s;
   const double nv = double(volume.numVoxels());
-  return contrast == Contrast::kVariance ? q / nv - (s / nv) * (s / nv) : q / s;
+  if (contrast == Contrast::kVariance) return q / nv - (s / nv) * (s / nv);
+  double self = 0;
+  for (const VolumeRay& r : rays)
+    for (int l = 0; l < volume.numPlanes(); ++l) {
+      const float rho = float(volume.planeInverseDepth(l));
+      if (!(rho < r.rho_max)) continue;
+      const float u = r.u0 + rho * r.du, v = r.v0 + rho * r.dv;
+      if (!(u >= 0 && v >= 0 && u < float(volume.width() - 1) && v < float(volume.height() - 1)))
+        continue;
+      const double ax = u - std::floor(u), ay = v - std::floor(v);
+      self += ((1 - ax) * (1 - ax) + ax * ax) * ((1 - ay) * (1 - ay) + ay * ay);
+    }
+  return (q - self) / s;
+}
+
+TEST(VweObjective, DensityPerVoteLeavesOutEachVotesOwnWeights) {
+  // One ray alone meets no other vote: whether it lands on a voxel centre (its own squares sum
+  // to 1) or between four (1/4), the density is zero. Two rays that meet give each the other's
+  // weights: on centres 1 per vote; the variance keeps the paper's definition.
+  const VolumeOptions options = volumeOptions(1, Contrast::kDensityPerVote);
+  ProjectiveVolume volume(options, 346, 260, 250, 250, 173, 130);
+  const VolumeRay on_centre{100.0f, 80.0f, 0.0f, 0.0f, std::numeric_limits<float>::infinity()};
+  const VolumeRay between{100.5f, 80.5f, 0.0f, 0.0f, std::numeric_limits<float>::infinity()};
+  size_t votes = 0;
+  EXPECT_EQ(volume.contrastOfRays({on_centre}, &votes), 0.0);
+  EXPECT_EQ(votes, size_t(options.num_planes));
+  EXPECT_NEAR(volume.contrastOfRays({between}, &votes), 0.0, 1e-9);
+  EXPECT_NEAR(volume.contrastOfRays({on_centre, on_centre}, &votes), 1.0, 1e-9);
+  EXPECT_NEAR(volume.contrastOfRays({between, between}, &votes), 0.25, 1e-9);
+  // The grid's path (vote(), clear()) says the same.
+  volume.vote({on_centre, on_centre});
+  EXPECT_NEAR(volume.contrast(), 1.0, 1e-9);
+  EXPECT_NEAR(volume.clear({on_centre, on_centre}), 1.0, 1e-9);
+  // The sensitivities are the derivatives of that density: central differences of a ray that
+  // overlaps another off-centre (its own squares alone would pull it to a voxel centre).
+  const VolumeRay fixed{100.2f, 80.7f, 0.0f, 0.0f, std::numeric_limits<float>::infinity()};
+  const VolumeRay moved{100.6f, 80.4f, 0.0f, 0.0f, std::numeric_limits<float>::infinity()};
+  std::vector<Eigen::Vector4d> sens;
+  volume.contrastOfRays({moved, fixed}, &votes, &sens);
+  ASSERT_EQ(sens.size(), size_t(2));
+  const float h = 1e-2f;
+  for (int axis : {0, 2}) {
+    VolumeRay plus = moved, minus = moved;
+    (axis == 0 ? plus.u0 : plus.v0) += h;
+    (axis == 0 ? minus.u0 : minus.v0) -= h;
+    const double fd = (volume.contrastOfRays({plus, fixed}, &votes) -
+                       volume.contrastOfRays({minus, fixed}, &votes)) /
+                      (2.0 * double(h));
+    EXPECT_NEAR(sens[0][axis], fd, 1e-4) << "axis " << axis;
+    EXPECT_GT(std::abs(fd), 0.01);
+  }
 }
 
 TEST(VweObjective, PoseSlicesLieOnAFixedGridOfAbsoluteTimes) {
@@ -101,7 +154,7 @@ TEST(VweObjective, ContrastFromClearingEqualsBruteForce) {
         for (float v : volume.data()) ASSERT_EQ(v, 0.0f);
         const VweEvaluation e = obj.voteOnly(ev, truth);
         double s = 0;
-        const double brute = bruteForceContrast(volume, contrast, &s);
+        const double brute = bruteForceContrast(volume, obj.lastRays(), contrast, &s);
         EXPECT_NEAR(from_clear, brute, 1e-6 * brute) << n << " events, " << threads << " threads";
         // (The density divides by the exact vote count, the brute force by the grid's float sum.)
         EXPECT_NEAR(e.contrast, brute, (contrast == Contrast::kVariance ? 1e-9 : 1e-6) * brute);

@@ -21,9 +21,16 @@ namespace vwe_vo {
 ///    more rays inside the grid scores higher: with structure on one side of the view, a yaw
 ///    error that turns the rays of that side's image border into the grid is rewarded (on a street,
 ///    a left facade pulls the yaw rate left, a right one right).
-///  - kDensityPerVote: sum V^2 / sum V, the mean density a vote meets (at a vote, the value of
-///    the grid there): as sharp as the variance for a fixed set of votes, but votes that leave
-///    or enter the grid do not change it unless they are more or less focused than the rest.
+///  - kDensityPerVote: (sum V^2 - sum_votes |w|^2) / sum V, the mean density of the other votes
+///    a vote meets (at a vote, the value of the grid there without its own weights w): as sharp
+///    as the variance for a fixed set of votes, but votes that leave or enter the grid do not
+///    change it unless they are more or less focused than the rest. A vote's own share,
+///    |w|^2 = ((1-ax)^2 + ax^2) ((1-ay)^2 + ay^2), says nothing of the trajectory: it is 1 on a
+///    voxel centre and 1/4 between four, and it was three quarters of sum V^2. At the planes
+///    near infinity with a zero yaw rate every vote of the image's centre lands on its pixel's
+///    own phase, so it made a spike of the objective at zero yaw rate one or two deg/s wide
+///    that held straight driving at exactly zero and pulled slow steering to it
+///    (street_drive's front-end returned 0.0-0.1 deg/s for true rates up to 6 deg/s).
 enum class Contrast { kVariance, kDensityPerVote };
 /// The YAML name of a Contrast: "variance" or "density_per_vote".
 const char* contrastName(Contrast contrast);
@@ -142,13 +149,16 @@ class ProjectiveVolume {
   std::vector<float> grid_;                  // allocated by the first vote()
   std::vector<std::vector<float>> scratch_;  // one plane per thread (contrastOfRays)
   std::vector<std::vector<Eigen::Vector4d>> chunk_sens_;
-  /// The contrast of a grid with this sum of squares and sum (= votes) of its voxels.
-  double contrastOf(double sum_squares, double sum) const;
+  /// The contrast of a grid with this sum of squares and sum (= votes) of its voxels, whose
+  /// votes' own weights have squares summing to self_squares (see Contrast).
+  double contrastOf(double sum_squares, double sum, double self_squares) const;
 
   double sum_ = 0.0;
+  double self_ = 0.0;  // sum over the votes of vote() of their own weights' squares |w|^2
   size_t last_votes_ = 0;
   std::vector<size_t> plane_counts_;   // votes per plane (group)
   std::vector<double> plane_squares_;  // sum of squares per plane
+  std::vector<double> plane_self_;     // sum of |w|^2 per plane (group)
   mutable ThreadPool pool_;
 };
 
