@@ -412,7 +412,7 @@ bool EmvsMapper::closeKeyframe(EmvsKeyframe* kf) {
   rays_.resize(kept);
   counts_.skipped_behind += n - kept;
   counts_.voted += kept;
-  counts_.votes += volume_->vote(rays_);
+  counts_.votes += volume_->vote(rays_, false);  // a DSI: no contrast
   kf->t_kf_ns = ref.t_ns;
   kf->counts = counts_;
   extractKeyframe(*volume_, options_, T_odom_ref, kf);

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <type_traits>
 
 namespace vwe_vo {
 namespace {
@@ -130,7 +131,7 @@ double ProjectiveVolume::peakDepth(const VolumeRay& ray) const {
   return best_l < 0 ? 0.0 : planeDepth(best_l);
 }
 
-size_t ProjectiveVolume::vote(const std::vector<VolumeRay>& rays) {
+size_t ProjectiveVolume::vote(const std::vector<VolumeRay>& rays, bool for_contrast) {
   if (grid_.empty()) grid_.assign(numVoxels(), 0.0f);
   const int L = options_.num_planes;
   const size_t W = size_t(width_);
@@ -144,31 +145,41 @@ size_t ProjectiveVolume::vote(const std::vector<VolumeRay>& rays) {
   plane_self_.assign(size_t(num_groups), 0.0);
   soa_.assign(rays);
   const size_t N = rays.size(), plane_voxels = W * height_;
-  pool_.run(num_groups, [&](int chunk, int) {
-    const int l0 = chunk * group, l1 = std::min(L, l0 + group);
-    size_t n = 0;
-    double self = 0.0;
-    // A block of rays serves the group's planes while its columns are in cache. Only the four
-    // read-modify-writes per vote: the sum of squares is gathered by clear().
-    constexpr size_t kBlock = 1024;
-    for (size_t b = 0; b < N; b += kBlock)
-      for (int l = l0; l < l1; ++l) {
-        float* plane = g + size_t(l) * plane_voxels;
-        const size_t e = std::min(N, b + kBlock);
-        float block_self = 0.0f;
-        forEachPlaneVoteBatched(float(rho_[l]), b, e, [&](size_t, size_t idx, float ax, float ay) {
-          addVote(plane, idx, W, ax, ay);
-          block_self += selfSquares(ax, ay);
-          ++n;
-        });
-        self += double(block_self);
-      }
-    plane_counts_[size_t(chunk)] = n;
-    plane_self_[size_t(chunk)] = self;
-  });
+  // A block of rays serves the group's planes while its columns are in cache. Only the four
+  // read-modify-writes per vote (and, for a contrast, the vote's own squares): the sum of
+  // squares is gathered by clear().
+  auto run = [&](auto own_squares) {
+    pool_.run(num_groups, [&](int chunk, int) {
+      const int l0 = chunk * group, l1 = std::min(L, l0 + group);
+      size_t n = 0;
+      double self = 0.0;
+      constexpr size_t kBlock = 1024;
+      for (size_t b = 0; b < N; b += kBlock)
+        for (int l = l0; l < l1; ++l) {
+          float* plane = g + size_t(l) * plane_voxels;
+          const size_t e = std::min(N, b + kBlock);
+          float block_self = 0.0f;
+          forEachPlaneVoteBatched(float(rho_[l]), b, e,
+                                  [&](size_t, size_t idx, float ax, float ay) {
+                                    addVote(plane, idx, W, ax, ay);
+                                    if constexpr (decltype(own_squares)::value)
+                                      block_self += selfSquares(ax, ay);
+                                    ++n;
+                                  });
+          self += double(block_self);
+        }
+      plane_counts_[size_t(chunk)] = n;
+      plane_self_[size_t(chunk)] = self;
+    });
+  };
+  if (for_contrast)
+    run(std::true_type());
+  else
+    run(std::false_type());
   size_t votes = 0;
   for (size_t n : plane_counts_) votes += n;
   for (double q : plane_self_) self_ += q;
+  if (!for_contrast) self_ = std::numeric_limits<double>::quiet_NaN();
   sum_ += double(votes);  // every vote adds weights summing to one
   last_votes_ += votes;
   return votes;
@@ -217,23 +228,24 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
       size_t n = 0;
       if (!sensitivities) {
         // The sum of squares is gathered while voting: adding w to a voxel that holds V adds
-        // w (2 V + w) to sum V^2. Afterwards the plane only needs zeroing.
-        double q0 = 0.0, q1 = 0.0, self = 0.0;
+        // w (2 V + w) to sum V^2, of which w^2 is the vote's own (left out for the density per
+        // vote: 2 w V, the pairs it makes with the votes before it, counted both ways).
+        // Afterwards the plane only needs zeroing.
+        const float own = others_only ? 0.0f : 1.0f;
+        double q0 = 0.0, q1 = 0.0;
         forEachPlaneVoteBatched(rho, 0, soa_.size, [&](size_t, size_t idx, float ax, float ay) {
           float* c0 = g + idx;
           float* c1 = c0 + W;
           const float w00 = (1 - ax) * (1 - ay), w10 = ax * (1 - ay), w01 = (1 - ax) * ay,
                       w11 = ax * ay;
           const float v00 = c0[0], v10 = c0[1], v01 = c1[0], v11 = c1[1];
-          q0 += double(w00 * (2 * v00 + w00) + w10 * (2 * v10 + w10));
-          q1 += double(w01 * (2 * v01 + w01) + w11 * (2 * v11 + w11));
-          self += double(w00 * w00 + w10 * w10 + w01 * w01 + w11 * w11);
+          q0 += double(w00 * (2 * v00 + own * w00) + w10 * (2 * v10 + own * w10));
+          q1 += double(w01 * (2 * v01 + own * w01) + w11 * (2 * v11 + own * w11));
           c0[0] = v00 + w00, c0[1] = v10 + w10, c1[0] = v01 + w01, c1[1] = v11 + w11;
           ++n;
         });
         plane_counts_[size_t(l)] = n;
-        plane_squares_[size_t(l)] = q0 + q1;
-        plane_self_[size_t(l)] = self;
+        plane_squares_[size_t(l)] = q0 + q1;  // without the own squares already
         zeroPlane(g, rho, n);
         continue;
       }
@@ -252,15 +264,15 @@ double ProjectiveVolume::contrastOfRays(const std::vector<VolumeRay>& rays, size
         const float v00 = g[idx], v10 = g[idx + 1], v01 = g[idx + W], v11 = g[idx + W + 1];
         const float top = v00 + (v10 - v00) * ax, bottom = v01 + (v11 - v01) * ax;
         q += double(top + (bottom - top) * ay);
-        double gu = double((v10 - v00) * (1 - ay) + (v11 - v01) * ay);
-        double gv = double((v01 - v00) * (1 - ax) + (v11 - v10) * ax);
+        float gu = (v10 - v00) * (1 - ay) + (v11 - v01) * ay;
+        float gv = (v01 - v00) * (1 - ax) + (v11 - v10) * ax;
         if (others_only) {
           const float sx = (1 - ax) * (1 - ax) + ax * ax, sy = (1 - ay) * (1 - ay) + ay * ay;
           self += double(sx * sy);
-          gu -= double((2 * ax - 1) * sy);
-          gv -= double((2 * ay - 1) * sx);
+          gu -= (2 * ax - 1) * sy;
+          gv -= (2 * ay - 1) * sx;
         }
-        acc[i] += Eigen::Vector4d(gu, gu * drho, gv, gv * drho);
+        acc[i] += Eigen::Vector4d(gu, double(gu) * drho, gv, double(gv) * drho);
       });
       plane_squares_[size_t(l)] = q;
       plane_self_[size_t(l)] = self;

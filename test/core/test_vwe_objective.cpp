@@ -98,10 +98,16 @@ TEST(VweObjective, DensityPerVoteLeavesOutEachVotesOwnWeights) {
   EXPECT_NEAR(volume.contrastOfRays({between}, &votes), 0.0, 1e-9);
   EXPECT_NEAR(volume.contrastOfRays({on_centre, on_centre}, &votes), 1.0, 1e-9);
   EXPECT_NEAR(volume.contrastOfRays({between, between}, &votes), 0.25, 1e-9);
-  // The grid's path (vote(), clear()) says the same.
+  // The grid's path (vote(), clear()) says the same; a DSI's votes (no contrast) say NaN.
   volume.vote({on_centre, on_centre});
   EXPECT_NEAR(volume.contrast(), 1.0, 1e-9);
   EXPECT_NEAR(volume.clear({on_centre, on_centre}), 1.0, 1e-9);
+  EXPECT_EQ(volume.vote({between, between}, false), size_t(2 * options.num_planes));
+  EXPECT_TRUE(std::isnan(volume.contrast()));
+  EXPECT_TRUE(std::isnan(volume.clear({between, between})));
+  for (float v : volume.data()) ASSERT_EQ(v, 0.0f);
+  volume.vote({between, between});
+  EXPECT_NEAR(volume.clear({between, between}), 0.25, 1e-9);
   // The sensitivities are the derivatives of that density: central differences of a ray that
   // overlaps another off-centre (its own squares alone would pull it to a voxel centre).
   const VolumeRay fixed{100.2f, 80.7f, 0.0f, 0.0f, std::numeric_limits<float>::infinity()};

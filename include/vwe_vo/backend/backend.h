@@ -43,7 +43,7 @@ struct BackendOptions {
   size_t max_events_per_volume = 10000;  // events voted per volume (uniform subsampling)
   size_t min_events_per_volume = 300;    // fewer events: the volume is skipped [events]
   int max_iterations = 20;               // LBFGS iterations per refinement
-  double function_tolerance = 1e-5;   // LBFGS stops when the relative cost change is below this [1]
+  double function_tolerance = 4e-5;   // LBFGS stops when the relative cost change is below this [1]
   int max_line_search_steps = 4;      // evaluations a line search may take (Ceres' default is 20)
   double step_scale_per_span = 0.25;  // solver unit of a control-point coordinate, as a fraction of
                                       // the distance driven per knot span (at least 1 mm) [1]

@@ -101,8 +101,10 @@ class ProjectiveVolume {
 
   /// The grid, for what reads the voxels (images, the EMVS DSI): bilinear votes of every ray
   /// into every plane it meets (the grid must be clear). Returns the number of plane-votes cast;
-  /// afterwards sum() is valid.
-  size_t vote(const std::vector<VolumeRay>& rays);
+  /// afterwards sum() is valid. for_contrast = false (the DSI) skips what only contrast() and
+  /// clear() need of the density per vote, the votes' own squared weights: its contrast is then
+  /// NaN until the grid is clear.
+  size_t vote(const std::vector<VolumeRay>& rays, bool for_contrast = true);
   /// Sum of all voxels (every vote adds weights summing to one).
   double sum() const { return sum_; }
   /// Contrast (options().contrast) of what vote() put in the grid, by one pass over the grid.
