@@ -2,8 +2,8 @@
 // and one that another thread is running is retried, never dropped.
 #include <gtest/gtest.h>
 
-#include <boost/make_shared.hpp>
 #include <atomic>
+#include <boost/make_shared.hpp>
 #include <chrono>
 #include <mutex>
 #include <thread>
@@ -99,7 +99,7 @@ TEST(InlineCallbackQueue, TwoDeliveringThreadsLoseNothing) {
   std::thread a(deliver), b(deliver);
   a.join();
   b.join();
-  EXPECT_GT(cb->busy.load(), 0);                // the other thread did find it running
+  EXPECT_GT(cb->busy.load(), 0);               // the other thread did find it running
   EXPECT_EQ(cb->runs.load(), 2 * kPerThread);  // and every delivery still ran exactly once
 }
 

@@ -31,14 +31,12 @@ class InlineCallbackQueue : public ros::CallbackQueueInterface {
 
 /// nh.subscribe(topic, queue_size, callback, obj) with the callback run inline (above).
 template <typename M, typename C>
-ros::Subscriber subscribeInline(ros::NodeHandle& nh, const std::string& topic,
-                                uint32_t queue_size,
+ros::Subscriber subscribeInline(ros::NodeHandle& nh, const std::string& topic, uint32_t queue_size,
                                 void (C::*callback)(const boost::shared_ptr<const M>&), C* obj) {
   ros::SubscribeOptions options;
-  options.template init<M>(topic, queue_size,
-                           [obj, callback](const boost::shared_ptr<const M>& msg) {
-                             (obj->*callback)(msg);
-                           });
+  options.template init<M>(
+      topic, queue_size,
+      [obj, callback](const boost::shared_ptr<const M>& msg) { (obj->*callback)(msg); });
   options.callback_queue = InlineCallbackQueue::instance();
   return nh.subscribe(options);
 }
