@@ -11,7 +11,7 @@
 #include "vwe_vo/io/files.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
-#include "vwe_vo/ros/inline_callback_queue.h"
+#include "vwe_vo/ros/input_callback_thread.h"
 #include "vwe_vo/ros/param_loader.h"
 #include "vwe_vo/ros/process_priority.h"
 #include "vwe_vo/ros/shared_msg.h"
@@ -34,11 +34,11 @@ BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, 
     : nh_(nh), pnh_(pnh), hosting_(hosting) {
   readParameters();
   events_sub_ =
-      subscribeInline(nh_, topics::kEvents, kEventPacketQueue, &BackendNode::eventsCallback, this);
+      subscribeInput(nh_, topics::kEvents, kEventPacketQueue, &BackendNode::eventsCallback, this);
   camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &BackendNode::cameraInfoCallback, this);
   arcs_sub_ = nh_.subscribe(topics::kArcs, 1000, &BackendNode::arcCallback, this);
   if (node_options_.use_imu)
-    imu_sub_ = subscribeInline(nh_, topics::kImu, 2000, &BackendNode::imuCallback, this);
+    imu_sub_ = subscribeInput(nh_, topics::kImu, 2000, &BackendNode::imuCallback, this);
   trajectory_pub_ = nh_.advertise<SplineTrajectory>(topics::kTrajectory, 10);
   odom_pub_ = nh_.advertise<nav_msgs::Odometry>(topics::kBackendOdom, 100);
   path_pub_ = nh_.advertise<nav_msgs::Path>(topics::kPath, 2);
@@ -51,7 +51,7 @@ BackendNode::BackendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, 
 }
 
 BackendNode::~BackendNode() {
-  // Inline callbacks (roscpp's threads) use input_: they end before it goes.
+  // The input thread's callbacks use input_: they end before it goes.
   events_sub_.shutdown();
   imu_sub_.shutdown();
   input_.stop();

@@ -10,7 +10,7 @@
 #include "vwe_vo/io/files.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
-#include "vwe_vo/ros/inline_callback_queue.h"
+#include "vwe_vo/ros/input_callback_thread.h"
 #include "vwe_vo/ros/param_loader.h"
 #include "vwe_vo/ros/process_priority.h"
 #include "vwe_vo/ros/shared_msg.h"
@@ -40,12 +40,12 @@ FrontendNode::FrontendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh
     : nh_(nh), pnh_(pnh) {
   readParameters();
   events_sub_ =
-      subscribeInline(nh_, topics::kEvents, kEventPacketQueue, &FrontendNode::eventsCallback, this);
+      subscribeInput(nh_, topics::kEvents, kEventPacketQueue, &FrontendNode::eventsCallback, this);
   camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &FrontendNode::cameraInfoCallback, this);
   if (node_options_.use_odom)
     odom_sub_ = nh_.subscribe(topics::kOdom, 200, &FrontendNode::odomCallback, this);
   if (node_options_.use_imu)
-    imu_sub_ = subscribeInline(nh_, topics::kImu, 2000, &FrontendNode::imuCallback, this);
+    imu_sub_ = subscribeInput(nh_, topics::kImu, 2000, &FrontendNode::imuCallback, this);
   if (node_options_.follow_backend)
     trajectory_sub_ =
         nh_.subscribe(topics::kTrajectory, 10, &FrontendNode::trajectoryCallback, this);
@@ -69,7 +69,7 @@ FrontendNode::FrontendNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh
 }
 
 FrontendNode::~FrontendNode() {
-  // Inline callbacks (roscpp's threads) use input_: they end before it goes.
+  // The input thread's callbacks use input_: they end before it goes.
   events_sub_.shutdown();
   imu_sub_.shutdown();
   input_.stop();

@@ -11,7 +11,7 @@
 #include "vwe_vo/io/files.h"
 #include "vwe_vo/io/options_yaml.h"
 #include "vwe_vo/ros/conversions.h"
-#include "vwe_vo/ros/inline_callback_queue.h"
+#include "vwe_vo/ros/input_callback_thread.h"
 #include "vwe_vo/ros/param_loader.h"
 #include "vwe_vo/ros/process_priority.h"
 #include "vwe_vo/ros/shared_msg.h"
@@ -35,7 +35,7 @@ MappingNode::MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, 
     : nh_(nh), pnh_(pnh), hosting_(hosting) {
   readParameters();
   events_sub_ =
-      subscribeInline(nh_, topics::kEvents, kEventPacketQueue, &MappingNode::eventsCallback, this);
+      subscribeInput(nh_, topics::kEvents, kEventPacketQueue, &MappingNode::eventsCallback, this);
   camera_info_sub_ = nh_.subscribe(topics::kCameraInfo, 2, &MappingNode::cameraInfoCallback, this);
   trajectory_sub_ = nh_.subscribe(topics::kTrajectory, 5, &MappingNode::trajectoryCallback, this);
   points_pub_ = nh_.advertise<sensor_msgs::PointCloud2>(topics::kMapPoints, 10);
@@ -48,7 +48,7 @@ MappingNode::MappingNode(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, 
 }
 
 MappingNode::~MappingNode() {
-  // Inline callbacks (roscpp's threads) use input_: they end before it goes.
+  // The input thread's callbacks use input_: they end before it goes.
   events_sub_.shutdown();
   input_.stop();
   if (worker_.joinable()) worker_.join();
