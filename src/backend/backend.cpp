@@ -57,6 +57,10 @@ void BackendOptions::validate(const std::string& section) const {
     fail("arc_rate_prior_scale_deg_s must be in [0, 100] deg/s (0: quadratic)");
   if (!(outlier_arc_min_rad_s >= 0 && outlier_arc_min_rad_s <= 2))
     fail("outlier_arc_min_rad_s must be in [0, 2] rad/s (0: off)");
+  if (!(stop_ramp_max_s >= 0 && stop_ramp_max_s <= 10))
+    fail("stop_ramp_max_s must be in [0, 10] s (0: off)");
+  if (!(nominal_min_tangent_speed_mps > 0 && nominal_min_tangent_speed_mps <= 10))
+    fail("nominal_min_tangent_speed_mps must be in (0, 10] m/s");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
   if (!(output_rate_hz > 0 && output_rate_hz <= 10000))
     fail("output_rate_hz must be in (0, 10000] Hz");
@@ -457,6 +461,63 @@ std::vector<BSpline::Interval> Backend::standstillIntervals(int64_t epoch_ns) co
   return out;
 }
 
+struct Backend::SpeedRamp {
+  int64_t edge_ns = 0;          // the standstill's start
+  int64_t peak_ns = 0;          // the middle of the bin where the event rate peaked before it
+  int64_t bin_ns = 0;           // length of the rate bins, back from the edge
+  std::vector<double> factors;  // the speed over the cruise speed per bin, the edge's first
+  /// The speed factor at t: 1 outside [peak, edge], linear between the bins' middles inside.
+  double factorAt(int64_t t_ns) const {
+    const double x = double(edge_ns - t_ns) / double(bin_ns) - 0.5;
+    if (x < -0.5 || x >= double(factors.size()) - 0.5) return 1.0;
+    if (x <= 0) return factors.front();
+    const size_t i = size_t(x);
+    const double w = x - double(i);
+    return (1 - w) * factors[i] + w * (i + 1 < factors.size() ? factors[i + 1] : 1.0);
+  }
+};
+
+std::vector<Backend::SpeedRamp> Backend::speedRamps(int64_t from_ns, int64_t to_ns) const {
+  std::vector<SpeedRamp> ramps;
+  if (options_.stop_ramp_max_s <= 0 || buffer_.empty()) return ramps;
+  constexpr int64_t kBin_ns = 100000000;  // 0.1 s: ~1e5 events at a moving rate of 1 Mev/s
+  const int max_bins = int(options_.stop_ramp_max_s / 0.1 + 1e-9);
+  const int64_t oldest = buffer_.oldestTime(), newest = std::min(buffer_.newestTime(), to_ns);
+  auto rate = [&](int64_t t0) {  // events per second in [t0, t0 + bin)
+    return double(buffer_.lowerBound(t0 + kBin_ns) - buffer_.lowerBound(t0)) / nsToSec(kBin_ns);
+  };
+  for (const auto& [a, b] : standstills_ns_) {
+    if (a <= from_ns || a - secToNs(options_.stop_ramp_max_s) >= to_ns) continue;
+    // The noise floor: the quietest bin of the standstill (0 if none is buffered).
+    double floor = std::numeric_limits<double>::infinity();
+    for (int64_t t = std::max(a, oldest); t + kBin_ns <= std::min(b, newest); t += kBin_ns)
+      floor = std::min(floor, rate(t));
+    if (!std::isfinite(floor)) floor = 0.0;
+    std::vector<double> rates;  // back from a
+    double peak = 0.0;
+    size_t peak_bin = 0;
+    for (int j = 0; j < max_bins; ++j) {
+      const int64_t t0 = a - (j + 1) * kBin_ns;
+      if (t0 < oldest) break;
+      const double r = rate(t0) - floor;
+      // Past the peak: the rate fell clearly below it (a cruising vehicle's rate varies with
+      // its yaw rate and the scene; braking, it falls steadily towards the stop).
+      if (r < 0.9 * peak) break;
+      rates.push_back(r);
+      if (r > peak) peak = r, peak_bin = size_t(j);
+    }
+    if (peak_bin == 0 || !(peak > 0)) continue;
+    SpeedRamp ramp;
+    ramp.edge_ns = a;
+    ramp.bin_ns = kBin_ns;
+    ramp.peak_ns = a - int64_t(peak_bin) * kBin_ns - kBin_ns / 2;
+    for (size_t j = 0; j < peak_bin; ++j)
+      ramp.factors.push_back(std::clamp(rates[j] / peak, 0.0, 1.0));
+    ramps.push_back(std::move(ramp));
+  }
+  return ramps;
+}
+
 void Backend::extendSpline(int64_t t_new_ns) {
   const int p = options_.degree;
   const double dk = options_.knot_spacing_s;
@@ -487,8 +548,25 @@ void Backend::extendSpline(int64_t t_new_ns) {
       span_s = std::max(0.0, dtSec(processed_ns_, overruled_until_ns_));
     T_anchor = fitAnchorOnSpline(*spline_, chain, processed_ns_, span_s);
   }
+  // Without /odom, the braking ramps into stops (stop_ramp_max_s), also where the previous
+  // refinement drove one at the cruise speed before its stop was known: refit from the ramp's
+  // start, within the free points of the coming refinement.
+  std::vector<SpeedRamp> ramps;
+  if (!speeds_measured_ && options_.stop_ramp_max_s > 0) {
+    const double u_window = u_new - options_.window_s;
+    ramps = speedRamps(epoch + secToNs(u_window), t_new_ns);
+    if (spline_) {
+      int min_first = p + 1;
+      while (min_first < n && knots[min_first + p + 1] <= u_window) ++min_first;
+      for (const SpeedRamp& r : ramps) {
+        const double u_r = dtSec(r.peak_ns, epoch);
+        while (first > min_first && knots[first + p] > u_r) --first;
+      }
+    }
+  }
   auto next = std::make_shared<BSpline>(p, knots, P, epoch);
   next->setStandstills(standstillIntervals(epoch));
+  if (!speeds_measured_) next->setMinSpeed(options_.nominal_min_tangent_speed_mps);
 
   std::vector<double> u;
   std::vector<Vec2> pos;
@@ -505,10 +583,40 @@ void Backend::extendSpline(int64_t t_new_ns) {
     else
       pos.push_back((T_anchor * chain.T_odom_base(epoch + secToNs(uk))).translation().head<2>());
   }
+  if (!ramps.empty()) applySpeedRamps(ramps, epoch, u, &pos);
   fitControlPoints(next.get(), first, u, pos, options_.smoothness_weight);
   spline_ = next;
   fit_first_ = first;
   fit_u_ = std::move(u);
+}
+
+void Backend::applySpeedRamps(const std::vector<SpeedRamp>& ramps, int64_t epoch,
+                              const std::vector<double>& u, std::vector<Vec2>* pos) const {
+  const std::vector<Vec2> p = *pos;
+  // The cruise speed of each ramp: the fit's (or the refined spline's) speed at its peak.
+  std::vector<double> cruise;
+  for (const SpeedRamp& r : ramps) {
+    const double u_peak = dtSec(r.peak_ns, epoch);
+    double v = std::numeric_limits<double>::quiet_NaN();
+    for (size_t k = 1; k < u.size(); ++k)
+      if (u[k - 1] <= u_peak && u_peak <= u[k]) v = (p[k] - p[k - 1]).norm() / (u[k] - u[k - 1]);
+    if (!std::isfinite(v) && spline_ && u_peak >= spline_->validFrom() &&
+        u_peak <= spline_->validTo())
+      v = spline_->velocity(u_peak).norm();
+    cruise.push_back(v);
+  }
+  for (size_t k = 1; k < u.size(); ++k) {
+    const int64_t t_mid = epoch + secToNs(0.5 * (u[k - 1] + u[k]));
+    Vec2 step = p[k] - p[k - 1];
+    const double len = step.norm();
+    for (size_t i = 0; i < ramps.size(); ++i) {
+      const double f = ramps[i].factorAt(t_mid);
+      if (f >= 1.0 || !(cruise[i] > 0) || !(len > 1e-9)) continue;
+      step *= cruise[i] * f * (u[k] - u[k - 1]) / len;
+      break;
+    }
+    (*pos)[k] = (*pos)[k - 1] + step;
+  }
 }
 
 void Backend::refine(int64_t t_new_ns) {

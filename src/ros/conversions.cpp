@@ -252,6 +252,7 @@ SplineTrajectory splineToMsg(const BSpline& spline, int first_free, const std::s
     m.standstill_from.push_back(s.from_s);
     m.standstill_to.push_back(s.to_s);
   }
+  m.min_speed = spline.minSpeed();
   return m;
 }
 
@@ -282,6 +283,8 @@ BSpline splineFromMsg(const SplineTrajectory& msg) {
       fail("control point " + std::to_string(i) + " is not finite");
     control_points[i] = Vec2(msg.control_x[i], msg.control_y[i]);
   }
+  if (!(std::isfinite(msg.min_speed) && msg.min_speed >= 0))
+    fail("min_speed " + std::to_string(msg.min_speed) + " is not a finite speed >= 0");
   std::vector<BSpline::Interval> still;
   for (size_t k = 0; k < msg.standstill_from.size(); ++k) {
     if (!std::isfinite(msg.standstill_from[k]) || !std::isfinite(msg.standstill_to[k]))
@@ -291,6 +294,7 @@ BSpline splineFromMsg(const SplineTrajectory& msg) {
   try {
     BSpline spline(msg.degree, msg.knots, std::move(control_points), toNs(msg.knot_epoch));
     spline.setStandstills(still);
+    if (msg.min_speed > 0) spline.setMinSpeed(msg.min_speed);
     return spline;
   } catch (const std::invalid_argument& e) {
     fail(std::string("knots: ") + e.what());

@@ -314,13 +314,15 @@ TEST(Frontend, FollowedSpeedIsTakenOnlyInWindowsAtTheMovingRate) {
   EventVector events;
   for (size_t i = 0; i < all.size(); ++i)
     if (all[i].t_ns < secToNs(5.15) || i % 10 < 3) events.push_back(all[i]);
-  Frontend fe(options(), camera(), defaultTBaseCam());
+  FrontendOptions o = options();
+  o.slow_rate_fraction = 0.5;
+  Frontend fe(o, camera(), defaultTBaseCam());
   fe.addEvents(events);
   const std::vector<ArcEstimate> arcs = fe.process();
   ASSERT_GE(arcs.size(), 4u);
   ASSERT_EQ(fe.stats().windows_slow, 1u);
   const ArcEstimate& slow = arcs.back();
-  EXPECT_NEAR(slow.v, 0.4 * 0.3 / options().slow_rate_fraction, 0.05);
+  EXPECT_NEAR(slow.v, 0.4 * 0.3 / o.slow_rate_fraction, 0.05);
   const int64_t t_slow = slow.t_ref_ns, t_moving = arcs.front().t_ref_ns;
   fe.setNominalSpeed(0.9, t_slow);  // a smoothed speed in the slow window: ignored
   EXPECT_DOUBLE_EQ(fe.options().nominal_speed_mps, 0.4);

@@ -72,6 +72,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       layout.array(8), layout.array(8), layout.array(8);
       layout.skip(8 + 8 + 4);  // valid_from, valid_to, first_free_control_point
       layout.array(8), layout.array(8);
+      layout.skip(8);  // min_speed
       vwe_vo::SplineTrajectory msg;
       if (!layout.ok() || !deserialize(data, size, &msg)) return 0;
       const vwe_vo::BSpline spline = vwe_vo::splineFromMsg(msg);

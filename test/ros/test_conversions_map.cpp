@@ -19,7 +19,8 @@ vwe_vo::BSpline testSpline() {
 }  // namespace
 
 TEST(Conversions, SplineRoundTripEvaluatesIdentically) {
-  const vwe_vo::BSpline spline = testSpline();
+  vwe_vo::BSpline spline = testSpline();
+  spline.setMinSpeed(0.5);  // the heading near u = 0 comes from a faster tangent
   const vwe_vo::SplineTrajectory msg = vwe_vo::splineToMsg(spline, 2, "odom");
   EXPECT_EQ(msg.header.frame_id, "odom");
   EXPECT_EQ(msg.first_free_control_point, 2u);
@@ -28,6 +29,7 @@ TEST(Conversions, SplineRoundTripEvaluatesIdentically) {
   EXPECT_EQ(vwe_vo::toNs(msg.valid_to), vwe_vo::secToNs(102.25));
   const vwe_vo::BSpline back = vwe_vo::splineFromMsg(msg);
   EXPECT_EQ(back.epochNs(), spline.epochNs());
+  EXPECT_EQ(back.minSpeed(), 0.5);
   for (double u = 0.0; u <= 2.0; u += 0.1) {
     EXPECT_EQ(back.position(u), spline.position(u));
     EXPECT_EQ(back.heading(u), spline.heading(u));
@@ -53,6 +55,9 @@ TEST(Conversions, SplineFromMsgNamesTheBadField) {
   m = good;
   m.knots.pop_back();
   EXPECT_NE(message(m).find("knots has 8 entries"), std::string::npos) << message(m);
+  m = good;
+  m.min_speed = -1.0;
+  EXPECT_NE(message(m).find("min_speed"), std::string::npos) << message(m);
   m = good;
   m.control_y.pop_back();
   EXPECT_NE(message(m).find("control_y"), std::string::npos) << message(m);

@@ -73,6 +73,18 @@ struct BackendOptions {
   /// in the arcs' basin. Needs a robust arc prior (arc_rate_prior_scale_deg_s) to ever replace
   /// a run against it (0: off) [rad/s].
   double outlier_arc_min_rad_s = 0.0;
+  /// Without /odom (setSpeedsMeasured(false)), the first fit's speed within this long before a
+  /// standstill follows the event rate above the standstill's noise: braking into a stop on a
+  /// path of constant curvature, the flow (rotation included: omega = curvature * v) and the
+  /// events scale with the speed. The ramp reaches back to where the rate peaked; the fit's
+  /// speed there is the cruise speed the rest scales. Starting from a stop is not ramped: the
+  /// volumes after a standstill do not see the heading it held, and a slow start lets the
+  /// solver turn it (0: off) [s].
+  double stop_ramp_max_s = 1.5;
+  /// Without /odom, the spline's tangent gives the heading only above this speed (slower: the
+  /// nearest faster tangent). A braking ramp's fit slows to ~0 at the stop, where its ringing
+  /// could reverse the tangent and hold the standstill's heading turned by 180 deg [m/s].
+  double nominal_min_tangent_speed_mps = 0.03;
   double max_backwards_jump_s = 0.5;  // arcs older than newest - this reset (YAML:
                                       // input.max_backward_jump_s) [s]
   double output_rate_hz = 20.0;       // rate of the sampled trajectory (backend.tum) [Hz]
@@ -363,6 +375,13 @@ class Backend {
   void update(int64_t t_new_ns);
   void extendSpline(int64_t t_new_ns);
   std::vector<BSpline::Interval> standstillIntervals(int64_t epoch_ns) const;
+  /// Braking ramps into the standstills (stop_ramp_max_s) that end in (from_ns, to_ns + max].
+  struct SpeedRamp;
+  std::vector<SpeedRamp> speedRamps(int64_t from_ns, int64_t to_ns) const;
+  /// The first fit's samples (times u, positions pos) driven at each ramp's cruise speed times
+  /// its factor inside it; the headings of the steps are kept.
+  void applySpeedRamps(const std::vector<SpeedRamp>& ramps, int64_t epoch,
+                       const std::vector<double>& u, std::vector<Vec2>* pos) const;
   void refine(int64_t t_new_ns);
   /// The solver's start, as x of `cost` (zero: the start as fit): the least cost of the fit, its
   /// yaw-rate offsets past the previous refinement (yaw_scan_*) and its outlying arcs replaced
