@@ -357,6 +357,7 @@ void Backend::reset() {
   spline_.reset();
   fit_u_.clear();
   overruled_until_ns_ = -1;
+  ramp_from_u_ = std::numeric_limits<double>::infinity();
   if (imu_) imu_->reset();
   ++stats_.resets;
 }
@@ -462,13 +463,16 @@ std::vector<BSpline::Interval> Backend::standstillIntervals(int64_t epoch_ns) co
 }
 
 struct Backend::SpeedRamp {
-  int64_t edge_ns = 0;          // the standstill's start
-  int64_t peak_ns = 0;          // the middle of the bin where the event rate peaked before it
-  int64_t bin_ns = 0;           // length of the rate bins, back from the edge
+  int64_t edge_ns = 0;          // the standstill's start (a stop) or end (a start)
+  int64_t peak_ns = 0;          // the middle of the bin where the event rate peaked beyond it
+  int64_t bin_ns = 0;           // length of the rate bins, away from the edge
+  int direction = -1;           // -1: bins back from the edge (a stop); +1: ahead (a start)
   std::vector<double> factors;  // the speed over the cruise speed per bin, the edge's first
-  /// The speed factor at t: 1 outside [peak, edge], linear between the bins' middles inside.
+  /// The earliest time the ramp covers.
+  int64_t from() const { return std::min(edge_ns, peak_ns); }
+  /// The speed factor at t: 1 outside [edge, peak], linear between the bins' middles inside.
   double factorAt(int64_t t_ns) const {
-    const double x = double(edge_ns - t_ns) / double(bin_ns) - 0.5;
+    const double x = double(direction * (t_ns - edge_ns)) / double(bin_ns) - 0.5;
     if (x < -0.5 || x >= double(factors.size()) - 0.5) return 1.0;
     if (x <= 0) return factors.front();
     const size_t i = size_t(x);
@@ -487,33 +491,46 @@ std::vector<Backend::SpeedRamp> Backend::speedRamps(int64_t from_ns, int64_t to_
     return double(buffer_.lowerBound(t0 + kBin_ns) - buffer_.lowerBound(t0)) / nsToSec(kBin_ns);
   };
   for (const auto& [a, b] : standstills_ns_) {
-    if (a <= from_ns || a - secToNs(options_.stop_ramp_max_s) >= to_ns) continue;
     // The noise floor: the quietest bin of the standstill (0 if none is buffered).
     double floor = std::numeric_limits<double>::infinity();
     for (int64_t t = std::max(a, oldest); t + kBin_ns <= std::min(b, newest); t += kBin_ns)
       floor = std::min(floor, rate(t));
     if (!std::isfinite(floor)) floor = 0.0;
-    std::vector<double> rates;  // back from a
-    double peak = 0.0;
-    size_t peak_bin = 0;
-    for (int j = 0; j < max_bins; ++j) {
-      const int64_t t0 = a - (j + 1) * kBin_ns;
-      if (t0 < oldest) break;
-      const double r = rate(t0) - floor;
-      // Past the peak: the rate fell clearly below it (a cruising vehicle's rate varies with
-      // its yaw rate and the scene; braking, it falls steadily towards the stop).
-      if (r < 0.9 * peak) break;
-      rates.push_back(r);
-      if (r > peak) peak = r, peak_bin = size_t(j);
-    }
-    if (peak_bin == 0 || !(peak > 0)) continue;
-    SpeedRamp ramp;
-    ramp.edge_ns = a;
-    ramp.bin_ns = kBin_ns;
-    ramp.peak_ns = a - int64_t(peak_bin) * kBin_ns - kBin_ns / 2;
-    for (size_t j = 0; j < peak_bin; ++j)
-      ramp.factors.push_back(std::clamp(rates[j] / peak, 0.0, 1.0));
-    ramps.push_back(std::move(ramp));
+    // The rates walking away from the edge, up to where they peaked: braking, the rate falls
+    // steadily towards the stop; a cruising vehicle's rate varies with its yaw rate and the
+    // scene, so the walk ends where the rate falls clearly (10 %) below its peak.
+    auto ramp = [&](int64_t edge, int direction) {
+      std::vector<double> rates;
+      double peak = 0.0;
+      size_t peak_bin = 0;
+      bool ended = false;
+      for (int j = 0; j < max_bins; ++j) {
+        const int64_t t0 = direction < 0 ? edge - (j + 1) * kBin_ns : edge + j * kBin_ns;
+        if (t0 < oldest || t0 + kBin_ns > newest) break;
+        const double r = rate(t0) - floor;
+        if (r < 0.9 * peak) {
+          ended = true;
+          break;
+        }
+        rates.push_back(r);
+        if (r > peak) peak = r, peak_bin = size_t(j);
+      }
+      if (peak_bin == 0 || !(peak > 0)) return;
+      // A start is ramped once its rate stopped rising (the cruise speed is the fit's there),
+      // while its end is inside the window.
+      if (direction > 0 && !ended && rates.size() < size_t(max_bins)) return;
+      SpeedRamp r;
+      r.edge_ns = edge;
+      r.bin_ns = kBin_ns;
+      r.direction = direction;
+      r.peak_ns = edge + direction * (int64_t(peak_bin) * kBin_ns + kBin_ns / 2);
+      if (direction > 0 && r.peak_ns <= from_ns) return;
+      for (size_t j = 0; j < peak_bin; ++j)
+        r.factors.push_back(std::clamp(rates[j] / peak, 0.0, 1.0));
+      ramps.push_back(std::move(r));
+    };
+    if (a > from_ns && a - secToNs(options_.stop_ramp_max_s) < to_ns) ramp(a, -1);
+    if (options_.start_ramps && b < newest_arc_ns_ && b < to_ns) ramp(b, +1);
   }
   return ramps;
 }
@@ -552,14 +569,24 @@ void Backend::extendSpline(int64_t t_new_ns) {
   // refinement drove one at the cruise speed before its stop was known: refit from the ramp's
   // start, within the free points of the coming refinement.
   std::vector<SpeedRamp> ramps;
+  ramp_from_u_ = std::numeric_limits<double>::infinity();
   if (!speeds_measured_ && options_.stop_ramp_max_s > 0) {
     const double u_window = u_new - options_.window_s;
     ramps = speedRamps(epoch + secToNs(u_window), t_new_ns);
+    // A standstill is known once its still arcs arrive, up to update_interval_s after it began:
+    // the ramp before it may reach behind the window, whose points the previous refinement drove
+    // at the cruise speed. This refinement's window then reaches back to the ramp's start, as far
+    // as the buffered events allow its volumes.
+    const double u_events =
+        dtSec(buffer_.empty() ? t_new_ns : buffer_.oldestTime(), epoch) + 0.5 * options_.tau2_s;
+    for (const SpeedRamp& r : ramps)
+      ramp_from_u_ = std::min(ramp_from_u_, std::max(dtSec(r.from(), epoch), u_events));
     if (spline_) {
       int min_first = p + 1;
-      while (min_first < n && knots[min_first + p + 1] <= u_window) ++min_first;
+      while (min_first < n && knots[min_first + p + 1] <= std::min(u_window, ramp_from_u_))
+        ++min_first;
       for (const SpeedRamp& r : ramps) {
-        const double u_r = dtSec(r.peak_ns, epoch);
+        const double u_r = dtSec(r.from(), epoch);
         while (first > min_first && knots[first + p] > u_r) --first;
       }
     }
@@ -622,7 +649,9 @@ void Backend::applySpeedRamps(const std::vector<SpeedRamp>& ramps, int64_t epoch
 void Backend::refine(int64_t t_new_ns) {
   const int p = options_.degree;
   const double u_new = spline_->toSplineTime(t_new_ns);
-  const double u_window = std::max(spline_->validFrom(), u_new - options_.window_s);
+  // The window, reaching back to the start of a speed ramp the extension refit (extendSpline).
+  const double u_window =
+      std::max(spline_->validFrom(), std::min(u_new - options_.window_s, ramp_from_u_));
   // Control points whose support ends before the window are fixed, and so are the first p + 1
   // (the first segment from the front-end: origin, heading and scale).
   int first_free = p + 1;

@@ -77,10 +77,13 @@ struct BackendOptions {
   /// standstill follows the event rate above the standstill's noise: braking into a stop on a
   /// path of constant curvature, the flow (rotation included: omega = curvature * v) and the
   /// events scale with the speed. The ramp reaches back to where the rate peaked; the fit's
-  /// speed there is the cruise speed the rest scales. Starting from a stop is not ramped: the
-  /// volumes after a standstill do not see the heading it held, and a slow start lets the
-  /// solver turn it (0: off) [s].
+  /// speed there is the cruise speed the rest scales. The refinement that first sees the
+  /// standstill reaches back to the ramp's start (0: off; also the length of start ramps) [s].
   double stop_ramp_max_s = 1.5;
+  /// Without /odom, also the speed after a standstill follows the event rate (starting on a
+  /// path of constant curvature), once the rate stopped rising; the cruise speed is the fit's
+  /// where it peaked.
+  bool start_ramps = true;
   /// Without /odom, the spline's tangent gives the heading only above this speed (slower: the
   /// nearest faster tangent). A braking ramp's fit slows to ~0 at the stop, where its ringing
   /// could reverse the tangent and hold the standstill's heading turned by 180 deg [m/s].
@@ -432,6 +435,8 @@ class Backend {
   int fit_first_ = 0;
   std::vector<double> fit_u_;
   int64_t overruled_until_ns_ = -1;  // end of the newest arcs replaced by scanStart
+  // Start of the earliest speed ramp the last extension refit (spline time; inf: none).
+  double ramp_from_u_ = std::numeric_limits<double>::infinity();
   BackendStats stats_;
 };
 
