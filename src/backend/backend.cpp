@@ -565,9 +565,9 @@ void Backend::extendSpline(int64_t t_new_ns) {
       span_s = std::max(0.0, dtSec(processed_ns_, overruled_until_ns_));
     T_anchor = fitAnchorOnSpline(*spline_, chain, processed_ns_, span_s);
   }
-  // Without /odom, the braking ramps into stops (stop_ramp_max_s), also where the previous
-  // refinement drove one at the cruise speed before its stop was known: refit from the ramp's
-  // start, within the free points of the coming refinement.
+  // Without /odom, the braking ramps into stops (stop_ramp_max_s) and out of them
+  // (start_ramps), also where the previous refinement drove one at the cruise speed before the
+  // standstill was known: refit from the ramp's start.
   std::vector<SpeedRamp> ramps;
   ramp_from_u_ = std::numeric_limits<double>::infinity();
   if (!speeds_measured_ && options_.stop_ramp_max_s > 0) {

@@ -378,7 +378,9 @@ class Backend {
   void update(int64_t t_new_ns);
   void extendSpline(int64_t t_new_ns);
   std::vector<BSpline::Interval> standstillIntervals(int64_t epoch_ns) const;
-  /// Braking ramps into the standstills (stop_ramp_max_s) that end in (from_ns, to_ns + max].
+  /// Braking ramps into the standstills (stop_ramp_max_s) that start in (from_ns, to_ns + max],
+  /// and (start_ramps) the ramps out of those that ended before the newest arc, once complete
+  /// and peaking after from_ns.
   struct SpeedRamp;
   std::vector<SpeedRamp> speedRamps(int64_t from_ns, int64_t to_ns) const;
   /// The first fit's samples (times u, positions pos) driven at each ramp's cruise speed times
