@@ -133,6 +133,8 @@ Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera,
       objective_(camera_, &volume_),
       scan_objectives_(camera_, options_.volume),
       one_sided_(options_.one_sided, camera_, T_base_cam_) {
+  if (options_.ground_mask)
+    ground_mask_ = GroundMask(camera_, T_base_cam_, options_.volume.z_min_m);
   if (one_sided_.enabled()) {
     const VolumeOptions deeper = one_sided_.deeperPlanes(options_.volume);
     const CameraCalibration& c = camera.calibration();
@@ -471,8 +473,14 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
           {budget / volume_thinning_, size_t(100), size_t(10 * options_.subsample_time_slices)});
       ++stats_.windows_thinned;
     }
-    const EventVector sub = subsampleEventsPerTimeSlice(
-        events, t0, t1, budget, options_.subsample_time_slices, options_.seed + stats_.windows);
+    // The events off the near ground, unless the mask leaves too few to estimate from.
+    EventVector seen;
+    if (options_.ground_mask) seen = ground_mask_.filter(events);
+    const bool masked = options_.ground_mask && seen.size() >= options_.min_events;
+    if (masked) stats_.events_ground_masked += events.size() - seen.size();
+    const EventVector sub =
+        subsampleEventsPerTimeSlice(masked ? seen : events, t0, t1, budget,
+                                    options_.subsample_time_slices, options_.seed + stats_.windows);
     double center = lost_ ? 0.0 : last_omega_;
     double half = lost_ ? options_.omega_max_rad_s : options_.scan_half_range_rad_s;
     double gyro = 0.0;

@@ -144,6 +144,7 @@ void fields(Archive& a, FrontendOptions* o) {
   a("slow_rate_fraction", &o->slow_rate_fraction);
   a("use_gyro_prior", &o->use_gyro_prior);
   a("gyro_prior_half_range_rad_s", &o->gyro_prior_half_range_rad_s);
+  a("ground_mask", &o->ground_mask);
   a("seed", &o->seed);
 }
 

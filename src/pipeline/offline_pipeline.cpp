@@ -375,6 +375,7 @@ nlohmann::json OfflinePipeline::report() const {
                              {"windows_one_sided", st.windows_one_sided},
                              {"windows_one_sided_near", st.windows_one_sided_near},
                              {"objective_evaluations", st.evaluations},
+                             {"events_ground_masked", st.events_ground_masked},
                              {"follows_backend", follower_.changesArcs()},
                              {"speeds_from_backend", follower_.speedsTaken()}};
   if (backend_) {

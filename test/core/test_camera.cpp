@@ -4,7 +4,9 @@
 #include <fstream>
 #include <limits>
 
+#include "vwe_vo/io/config.h"
 #include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sensor/ground_mask.h"
 
 using namespace vwe_vo;
 
@@ -108,4 +110,55 @@ TEST(Camera, MalformedYamlNamesFileAndField) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("fx"), std::string::npos) << e.what();
   }
+}
+
+namespace {
+CameraCalibration pinhole346() {
+  CameraCalibration c;
+  c.width = 346;
+  c.height = 260;
+  c.fx = c.fy = 255.0;
+  c.cx = 172.6;
+  c.cy = 129.4;
+  return c;
+}
+}  // namespace
+
+TEST(GroundMask, MasksTheRowsBelowTheNearestPlanesGroundLineOfALevelCamera) {
+  // A level pinhole camera h above the floor sees the floor at depth h * fy / (y - cy) in row y.
+  const CameraModel cam(pinhole346());
+  const double h = 0.3, z_min = 0.8;
+  const GroundMask mask(cam, mountToTBaseCam(Vec3(0.1, 0.0, h), 0, 0, 0), z_min);
+  const double boundary = 129.4 + h * 255.0 / z_min;  // row 225.0 (pixel centres at integers)
+  size_t expected = 0;
+  for (int y = 0; y < cam.height(); ++y) {
+    const bool below = y > boundary + 0.01;
+    if (std::abs(y - boundary) > 0.01) {
+      for (int x : {0, 172, 345}) {
+        EXPECT_EQ(mask.keeps({0, uint16_t(x), uint16_t(y), 1}), !below) << y;
+      }
+    }
+    expected += below ? size_t(cam.width()) : 0;
+  }
+  EXPECT_NEAR(double(mask.maskedPixels()), double(expected), double(cam.width()));
+  EXPECT_GT(mask.maskedPixels(), 30u * 346u);
+}
+
+TEST(GroundMask, FollowsTheMountAndKeepsEverythingWithoutAGroundBelow) {
+  const CameraModel cam(pinhole346());
+  const Pose3 level = mountToTBaseCam(Vec3(1.5, 0.0, 1.4), 0, 0, 0);
+  const Pose3 down = mountToTBaseCam(Vec3(1.5, 0.0, 1.4), 0, 5.0 * kRadPerDeg, 0);
+  // Pitched down 5 deg, the ground line of a 4.5 m plane rises by about fy tan(5 deg) = 22 rows.
+  const size_t n_level = GroundMask(cam, level, 4.5).maskedPixels();
+  const size_t n_down = GroundMask(cam, down, 4.5).maskedPixels();
+  EXPECT_NEAR(double(n_down - n_level) / cam.width(), 22.3, 1.5);
+  // On or below the ground (height 0), or no nearest plane: nothing masked, every event kept.
+  const GroundMask none(cam, mountToTBaseCam(Vec3(0, 0, 0), 0, 0, 0), 4.5);
+  EXPECT_EQ(none.maskedPixels(), 0u);
+  EXPECT_TRUE(none.keeps({0, 100, 259, 1}));
+  const EventVector events = {{0, 10, 250, 1}, {1, 10, 20, -1}, {2, 300, 255, 1}};
+  EXPECT_EQ(none.filter(events).size(), 3u);
+  const EventVector kept = GroundMask(cam, down, 4.5).filter(events);
+  ASSERT_EQ(kept.size(), 1u);
+  EXPECT_EQ(kept[0].t_ns, 1);
 }

@@ -1,0 +1,38 @@
+// Pixels whose line of sight meets the ground nearer than a volume's first plane. Whatever such
+// a pixel sees lies nearer still (the ground behind it is hidden), so its events cannot focus in
+// any plane of the volume; their rays are spread over the nearest planes at every yaw rate and
+// pull the contrast's peak towards the rates that smear them least (street_drive, a car's camera
+// 1.4 m up: the 0.3 s windows' peaks 2.4 deg/s RMS from the true yaw rate with them, 1.1 without).
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include "vwe_vo/common/math.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sensor/events.h"
+
+namespace vwe_vo {
+
+class GroundMask {
+ public:
+  /// Keeps every pixel.
+  GroundMask() = default;
+  /// Masks the pixels whose ray meets the ground, the plane z = 0 of base_link, at a depth along
+  /// the camera's optical axis below min_depth_m. A camera at or below the ground masks nothing.
+  GroundMask(const CameraModel& camera, const Pose3& T_base_cam, double min_depth_m);
+  bool keeps(const PixelEvent& e) const {
+    return masked_.empty() || !masked_[size_t(e.y) * width_ + e.x];
+  }
+  /// Pixels masked, of width x height.
+  size_t maskedPixels() const { return num_masked_; }
+  /// The events of `events` it keeps, in order.
+  EventVector filter(const EventVector& events) const;
+
+ private:
+  std::vector<bool> masked_;  // row-major; empty: keeps everything
+  size_t width_ = 0;
+  size_t num_masked_ = 0;
+};
+
+}  // namespace vwe_vo
