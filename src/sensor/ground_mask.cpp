@@ -6,7 +6,7 @@ GroundMask::GroundMask(const CameraModel& camera, const Pose3& T_base_cam, doubl
   const double height = T_base_cam.translation().z();
   if (!(height > 0) || !(min_depth_m > 0)) return;
   width_ = size_t(camera.width());
-  masked_.assign(width_ * size_t(camera.height()), false);
+  masked_.assign(width_ * size_t(camera.height()), 0);
   const Eigen::Matrix3d R = T_base_cam.linear();
   for (int y = 0; y < camera.height(); ++y)
     for (int x = 0; x < camera.width(); ++x) {
@@ -15,7 +15,7 @@ GroundMask::GroundMask(const CameraModel& camera, const Pose3& T_base_cam, doubl
       if (!(down < 0) || !(d.z() > 0)) continue;
       const double depth = height / -down * d.z();  // along the optical axis, where it lands
       if (depth < min_depth_m) {
-        masked_[size_t(y) * width_ + size_t(x)] = true;
+        masked_[size_t(y) * width_ + size_t(x)] = 1;
         ++num_masked_;
       }
     }

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "vwe_vo/common/math.h"
@@ -30,7 +31,7 @@ class GroundMask {
   EventVector filter(const EventVector& events) const;
 
  private:
-  std::vector<bool> masked_;  // row-major; empty: keeps everything
+  std::vector<uint8_t> masked_;  // row-major, 1: masked; empty: keeps everything
   size_t width_ = 0;
   size_t num_masked_ = 0;
 };
