@@ -413,13 +413,14 @@ void FrontendNode::logStatus() {
       "frontend_node: %zu windows (%zu split in two) (%zu one-sided, %zu one-sided but near) -> "
       "%zu arcs (%zu ok, %zu standstill, %zu lost, %zu "
       "low events), %zu windows skipped behind, %zu thinned behind; "
-      "%.0f events/s in, %zu outside the sensor, %zu late; %zu resets; real-time factor %.3f; "
-      "input: %s",
+      "%.0f events/s in, %zu outside the sensor, %zu late, %zu on the near ground not voted; %zu "
+      "resets; real-time factor %.3f; input: %s",
       s.windows, s.windows_split, s.windows_one_sided, s.windows_one_sided_near,
       windows_ok_ + windows_standstill_ + windows_lost_ + windows_low_, windows_ok_,
       windows_standstill_, windows_lost_, windows_low_, s.windows_dropped, s.windows_thinned,
       double(s.events_in - last_status_events_) / wall_s,
-      s.events_outside + input_.counters().events_outside, s.events_out_of_order, s.resets,
+      s.events_outside + input_.counters().events_outside, s.events_out_of_order,
+      s.events_ground_masked, s.resets,
       processed_data_s_ > 0 ? busy_wall_s_ / processed_data_s_ : 0.0, input_.statusLine().c_str());
   last_status_ = now;
   last_status_events_ = s.events_in;
