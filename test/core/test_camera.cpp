@@ -143,7 +143,7 @@ TEST(GroundMask, FollowsTheMountAndKeepsEverythingWithoutAGroundBelow) {
   const size_t n_level = GroundMask(cam, level, 4.5).maskedPixels();
   const size_t n_down = GroundMask(cam, down, 4.5).maskedPixels();
   EXPECT_NEAR(double(n_down - n_level) / cam.width(), 21.6, 1.5);
-  // On or below the ground (height 0), or no nearest plane: nothing masked, every event kept.
+  // A camera on the ground (height 0): nothing masked, every event kept.
   const GroundMask none(cam, mountToTBaseCam(Vec3(0, 0, 0), 0, 0, 0), 4.5);
   EXPECT_EQ(none.maskedPixels(), 0u);
   EXPECT_TRUE(none.keeps({0, 100, 259, 1}));
