@@ -171,22 +171,24 @@ TEST(BackendAccuracy, IndoorDriveStopsInBendsOnAnUnevenFloor) {
               r.backend.rpe.yaw_rmse_deg_s);
 }
 
-// Measured: back-end 0.578 deg/s against the front-end's 0.674 (14 % lower), translation
-// direction 0.315 deg/s, ATE 0.31 %, scale per 10 m 0.999-1.015. On the straights of this street
-// (true yaw rate exactly zero) the 1 s volumes place the yaw to about 1 deg/s; the 0.246 measured
-// here before came from the density per vote counting each vote's own weights, which made a
-// spike at zero yaw rate (see Contrast). The ratio moves with where the windows fall
-// (subsampling seed, bag start), so the street asks for 5 % below the front-end.
+// Measured: back-end 0.653 deg/s against the front-end's 0.664, translation direction 0.370
+// deg/s, ATE 0.47 %, scale per 10 m 0.996-1.011. On the straights of this street (true yaw rate
+// exactly zero) the 1 s volumes place the yaw to about 1 deg/s, so the back-end gains little
+// over the masked front-end here. Before car.yaml's ground mask and without its yaw-rate scan
+// this test measured 0.578 against 0.674 and ATE 0.31 %; on the bag, over two subsampling seeds
+// and two late starts, the change moved street_long 0.616 -> 0.587 (ATE 0.41 % both) and
+// street_drive 1.03 -> 0.69 (ATE 1.46 -> 0.22 %). The ratio moves with where the windows fall
+// (subsampling seed, bag start), so the street asks only that the back-end is no worse.
 TEST(BackendAccuracy, StreetLongWithTheCarConfig) {
   // A car at 5-8 m/s with 90-degree turns; config/car.yaml (its mount, one-sided windows with
   // planes from 10 m where the facade is deep enough). The scale comes from the wheel speed: no
   // drift along 250 m.
   const PipelineRun r = run("street_long", "car.yaml");
   EXPECT_EQ(r.nonfinite_poses, 0u);
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.95 * r.frontend.rpe.rot_rmse_deg_s);  // measured 0.86
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.72);                                  // measured 0.578
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.4);                             // measured 0.315
-  EXPECT_LE(r.backend.ate_percent_of_path, 0.42);                                 // measured 0.31
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, r.frontend.rpe.rot_rmse_deg_s);  // 0.653 vs 0.664
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.75);                           // measured 0.653
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.45);                     // measured 0.370
+  EXPECT_LE(r.backend.ate_percent_of_path, 0.6);                           // measured 0.47
   ASSERT_GE(r.backend.scale_drift.ratios.size(), 20u);
   EXPECT_LE(r.backend.scale_drift.max_ratio / r.backend.scale_drift.min_ratio,
             1.023);  // measured 1.015
@@ -208,29 +210,30 @@ TEST(BackendAccuracy, StreetLongStartedLate) {
 // A car weaving in the right lane of a street (5.6-9.4 m/s, lane changes, a bend; the flat twin:
 // yaw is all that is estimated). The facades are asymmetric: with front-end planes that ended
 // at 60 m, each side's distant facade pulled the yaw towards itself and the busier side won
-// (front-end 0.76 x true + 0.6 deg/s on the bag). Measured: front-end 1.490, back-end 1.073
-// deg/s, translation direction 0.589 deg/s (with each vote's own weights in the density, whose
-// spike at zero yaw rate held 26 of 171 windows at zero on the bag: 1.480, 1.353, 0.730; planes
-// ending at 60 m as well: 1.917, 1.766, 0.940).
+// (front-end 0.76 x true + 0.6 deg/s on the bag). Measured: front-end 0.773, back-end 0.685
+// deg/s, translation direction 0.372 deg/s; before car.yaml's ground mask, with its yaw-rate
+// scan: 1.490, 1.073, 0.589 (with each vote's own weights in the density, whose spike at zero
+// yaw rate held 26 of 171 windows at zero on the bag: 1.480, 1.353, 0.730; planes ending at 60 m
+// as well: 1.917, 1.766, 0.940).
 TEST(BackendAccuracy, StreetDriveWeavingInTheRightLane) {
   const PipelineRun r = run("street_drive_flat", "car.yaml");
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_GE(r.backend.tracked_fraction, 0.95);
   EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, r.frontend.rpe.yaw_rmse_deg_s);
-  EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 1.35);
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.75);
+  EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 0.9);        // measured 0.685
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.5);  // measured 0.372
 }
 
 // The car on its suspension (pitch/roll 1-2 deg, bumps, braking dives) with the DAVIS's IMU: the
 // tilt comes from gyro and accelerometer, the car's own acceleration removed with a central
 // difference of the odometry's speed; the yaw-rate bias is estimated against the events' yaw.
 // The first fit turns at the gyro's rate less the bias estimate; the bias is measured per window
-// against the yaw-rate offset the volumes prefer. Measured: 3D rotation RMSE 0.244, tilt 0.124,
-// translation direction 0.219 deg/s, yaw-rate bias 0.057 deg/s low (the street's windows measure
-// it to about 1 deg/s each). With the arcs' rates as the first fit and the
-// bias from the spline's own offset: 0.496 / 0.117 / 0.284; the speed's difference cut at the
-// newest arc: 0.82, 0.72, 0.80 on the bag; the accelerometer's correction at 1 s instead of
-// car.yaml's 3 s: tilt 0.219.
+// against the yaw-rate offset the volumes prefer. Measured: 3D rotation RMSE 0.224, tilt 0.132,
+// translation direction 0.190 deg/s, yaw-rate bias 0.082 deg/s low (the street's windows measure
+// it to about 1 deg/s each; the estimate's own sigma at the end is 0.25 deg/s). With the arcs'
+// rates as the first fit and the bias from the spline's own offset: 0.496 / 0.117 / 0.284; the
+// speed's difference cut at the newest arc: 0.82, 0.72, 0.80 on the bag; the accelerometer's
+// correction at 1 s instead of car.yaml's 3 s: tilt 0.219.
 TEST(BackendAccuracy, StreetDriveOnItsSuspensionWithTheImu) {
   const PipelineRun r = run("street_drive", "car.yaml", 0.0, true);
   EXPECT_EQ(r.nonfinite_poses, 0u);
