@@ -145,6 +145,12 @@ Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera,
   }
 }
 
+EventVector Frontend::offGround(const EventVector& events) const {
+  if (!options_.ground_mask) return events;
+  EventVector seen = ground_mask_.filter(events);
+  return seen.size() >= options_.min_events ? seen : events;
+}
+
 void Frontend::reset() {
   buffer_.clear();
   next_window_start_ns_ = -1;
@@ -473,14 +479,10 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
           {budget / volume_thinning_, size_t(100), size_t(10 * options_.subsample_time_slices)});
       ++stats_.windows_thinned;
     }
-    // The events off the near ground, unless the mask leaves too few to estimate from.
-    EventVector seen;
-    if (options_.ground_mask) seen = ground_mask_.filter(events);
-    const bool masked = options_.ground_mask && seen.size() >= options_.min_events;
-    if (masked) stats_.events_ground_masked += events.size() - seen.size();
-    const EventVector sub =
-        subsampleEventsPerTimeSlice(masked ? seen : events, t0, t1, budget,
-                                    options_.subsample_time_slices, options_.seed + stats_.windows);
+    const EventVector seen = offGround(events);
+    stats_.events_ground_masked += events.size() - seen.size();
+    const EventVector sub = subsampleEventsPerTimeSlice(
+        seen, t0, t1, budget, options_.subsample_time_slices, options_.seed + stats_.windows);
     double center = lost_ ? 0.0 : last_omega_;
     double half = lost_ ? options_.omega_max_rad_s : options_.scan_half_range_rad_s;
     double gyro = 0.0;

@@ -5,11 +5,12 @@
 //                    [--range DEG_S] [--step DEG_S] [--out CSV] [--dump-events F] [--events F]
 //
 // Reads the events of [t - duration/2, t + duration/2) (t in seconds, the bag's time base),
-// subsamples them as the front-end does, and writes `omega_deg_s,contrast` for omega in
-// [centre - range, centre + range]. With --gt the speed and the true yaw rate over the window
-// come from the ground truth (TUM), the scan is centred on the truth and the header says where
-// the objective peaks relative to it; without it the speed is --v (default: the config's
-// nominal speed) and the scan is centred on 0. scripts/plot_objective.py draws the CSV.
+// leaves out the ground mask's pixels and subsamples them as the front-end does, and writes
+// `omega_deg_s,contrast` for omega in [centre - range, centre + range]. With --gt the speed and the
+// true yaw rate over the window come from the ground truth (TUM), the scan is centred on the truth
+// and the header says where the objective peaks relative to it; without it the speed is --v
+// (default: the config's nominal speed) and the scan is centred on 0. scripts/plot_objective.py
+// draws the CSV.
 // --dump-events writes the window's events (`t_ns x y p`, one a line) before subsampling;
 // --events reads the window from such a file instead (e.g. a filtered dump), to find which
 // events pull the peak.
@@ -137,8 +138,9 @@ int main(int argc, char** argv) {
 
     const vwe_vo::CameraModel camera(cfg.camera);
     vwe_vo::Frontend frontend(cfg.frontend, camera, cfg.T_base_cam);
+    const vwe_vo::EventVector seen = frontend.offGround(window);
     const vwe_vo::EventVector sub =
-        vwe_vo::subsampleEventsPerTimeSlice(window, t0, t1, cfg.frontend.max_events_per_volume,
+        vwe_vo::subsampleEventsPerTimeSlice(seen, t0, t1, cfg.frontend.max_events_per_volume,
                                             cfg.frontend.subsample_time_slices, cfg.frontend.seed);
     const double centre = std::isfinite(omega_true) ? omega_true : 0.0;
     std::ofstream file;
@@ -148,7 +150,8 @@ int main(int argc, char** argv) {
     }
     std::ostream& out = args.count("--out") ? file : std::cout;
     out << "# window " << vwe_vo::nsToSec(t0) << " .. " << vwe_vo::nsToSec(t1) << " s, "
-        << window.size() << " events (" << sub.size() << " voted), v " << v << " m/s";
+        << window.size() << " events (" << window.size() - seen.size() << " off the ground mask, "
+        << sub.size() << " voted), v " << v << " m/s";
     if (std::isfinite(omega_true))
       out << ", true omega " << (omega_true * vwe_vo::kDegPerRad) << " deg/s";
     out << "\nomega_deg_s,contrast\n";
@@ -159,8 +162,10 @@ int main(int argc, char** argv) {
       out << (w * vwe_vo::kDegPerRad) << "," << f << "\n";
     }
     std::fprintf(stderr,
-                 "[vwe_vo_objective] %zu events (%zu voted), v %.3f m/s: peak at %.2f deg/s",
-                 window.size(), sub.size(), v, (best_omega * vwe_vo::kDegPerRad));
+                 "[vwe_vo_objective] %zu events (%zu masked, %zu voted), v %.3f m/s: peak at "
+                 "%.2f deg/s",
+                 window.size(), window.size() - seen.size(), sub.size(), v,
+                 (best_omega * vwe_vo::kDegPerRad));
     if (std::isfinite(omega_true))
       std::fprintf(stderr, ", truth %.2f deg/s (peak - truth %.2f deg/s)",
                    (omega_true * vwe_vo::kDegPerRad),

@@ -9,6 +9,7 @@
 #include "vwe_vo/frontend/backlog_policy.h"
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/io/config.h"
+#include "vwe_vo/sensor/ground_mask.h"
 #include "vwe_vo/vwe/ray_builder.h"
 
 using namespace vwe_vo;
@@ -50,6 +51,28 @@ TEST(Frontend, RecoversTheYawRateOfAConstantArc) {
     const double dyaw = wrapAngle(yawOf((T_a.inverse() * T_b).linear()));
     EXPECT_NEAR(dyaw, w * nsToSec(arcs.back().t_end_ns - arcs.front().t_start_ns), 0.01);
   }
+}
+
+// The front-end votes the events off the near ground (the turtlebot's mount: the rows below
+// about 220 see the floor nearer than the first plane at 0.8 m), and all of a window's events
+// when the mask would leave fewer than min_events.
+TEST(Frontend, VotesTheEventsOffTheNearGroundUnlessTooFewRemain) {
+  FrontendOptions o = options();
+  o.min_events = 4;
+  ASSERT_TRUE(o.ground_mask);
+  const Frontend fe(o, camera(), defaultTBaseCam());
+  const PixelEvent floor{0, 170, 255, 1}, wall{0, 170, 40, 1};
+  const GroundMask mask(camera(), defaultTBaseCam(), o.volume.z_min_m);
+  ASSERT_FALSE(mask.keeps(floor));
+  ASSERT_TRUE(mask.keeps(wall));
+  const EventVector mixed = {floor, wall, floor, wall, wall, floor, wall};
+  const EventVector seen = fe.offGround(mixed);
+  ASSERT_EQ(seen.size(), 4u);
+  for (const PixelEvent& e : seen) EXPECT_EQ(e.y, wall.y);
+  const EventVector few = {floor, wall, floor, wall, floor};  // 2 off the ground < min_events
+  EXPECT_EQ(fe.offGround(few).size(), few.size());
+  o.ground_mask = false;
+  EXPECT_EQ(Frontend(o, camera(), defaultTBaseCam()).offGround(mixed).size(), mixed.size());
 }
 
 // A node behind its input thins its windows instead of skipping them: each window votes

@@ -168,6 +168,9 @@ class Frontend {
   ArcEstimate estimateWindow(const EventVector& window_events, int64_t t_ref_ns, double v,
                              double omega_center, double half_range,
                              const WindowScan& setup = WindowScan());
+  /// The events of a window the front-end votes from: those off the near ground (ground_mask),
+  /// or all of them if the mask would leave fewer than min_events.
+  EventVector offGround(const EventVector& events) const;
   /// Contrast of the VWE of `events` for an arc (omega, v) about t_ref (with the one-sided
   /// window's planes if deep_planes).
   double contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v,
