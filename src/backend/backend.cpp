@@ -358,6 +358,7 @@ void Backend::reset() {
   fit_u_.clear();
   overruled_until_ns_ = -1;
   ramp_from_u_ = std::numeric_limits<double>::infinity();
+  counted_stop_edge_ns_ = counted_start_edge_ns_ = std::numeric_limits<int64_t>::min();
   if (imu_) imu_->reset();
   ++stats_.resets;
 }
@@ -579,8 +580,15 @@ void Backend::extendSpline(int64_t t_new_ns) {
     // as the buffered events allow its volumes.
     const double u_events =
         dtSec(buffer_.empty() ? t_new_ns : buffer_.oldestTime(), epoch) + 0.5 * options_.tau2_s;
-    for (const SpeedRamp& r : ramps)
+    for (const SpeedRamp& r : ramps) {
       ramp_from_u_ = std::min(ramp_from_u_, std::max(dtSec(r.from(), epoch), u_events));
+      // Each refit of a ramp counts once (edges come in time order).
+      int64_t& counted = r.direction < 0 ? counted_stop_edge_ns_ : counted_start_edge_ns_;
+      if (r.edge_ns > counted) {
+        counted = r.edge_ns;
+        ++(r.direction < 0 ? stats_.stop_ramps : stats_.start_ramps);
+      }
+    }
     if (spline_) {
       int min_first = p + 1;
       while (min_first < n && knots[min_first + p + 1] <= std::min(u_window, ramp_from_u_))

@@ -26,6 +26,7 @@ struct PipelineRun {
   size_t nonfinite_poses = 0;
   double yaw_bias_error_deg_s = 0.0;  // with the IMU: the estimated yaw-rate bias - the true one
   double yaw_bias_deg_s = 0.0;        // ... the true one
+  BackendStats backend_stats;
 };
 
 /// Simulates `name` and runs front-end + back-end on it with config/<config>, the speed from
@@ -78,6 +79,7 @@ PipelineRun run(const std::string& name, const std::string& config_file = "vwe_v
   const Trajectory3 gt = trajectory.sample(secToNs(0.005));
   const Trajectory3 be = pipeline.backendTrajectory();
   PipelineRun r;
+  r.backend_stats = pipeline.backend()->stats();
   for (const StampedPose& p : be) r.nonfinite_poses += !p.T.matrix().allFinite();
   if (imu_sim) {
     // The yaw-rate bias: the camera-frame gyro bias along base_link's up axis.
@@ -146,6 +148,8 @@ TEST(BackendAccuracy, IndoorLongWithoutOdometry) {
 TEST(BackendAccuracy, IndoorDriveWithoutOdometryBrakesIntoItsStops) {
   const PipelineRun r = run("indoor_drive", "vwe_vo.yaml", 0.0, false, false);
   EXPECT_EQ(r.nonfinite_poses, 0u);
+  EXPECT_EQ(r.backend_stats.stop_ramps, 2u);  // one into each stop, counted once
+  EXPECT_EQ(r.backend_stats.start_ramps, 2u);
   EXPECT_GE(r.backend.tracked_fraction, 0.95);
   // Measured 0.221; 0.302 with the braking ramps each fit within its own window only (the last
   // 0.4 s before a stop braked hard and the fit rang), 0.264 without ramps.
@@ -164,6 +168,7 @@ TEST(BackendAccuracy, IndoorDriveWithoutOdometryBrakesIntoItsStops) {
 TEST(BackendAccuracy, IndoorDriveStopsInBendsOnAnUnevenFloor) {
   const PipelineRun r = run("indoor_drive");
   EXPECT_EQ(r.nonfinite_poses, 0u);
+  EXPECT_EQ(r.backend_stats.stop_ramps + r.backend_stats.start_ramps, 0u);  // /odom: no ramps
   EXPECT_GE(r.backend.tracked_fraction, 0.95);
   EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 0.2);         // measured 0.154
   EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.22);  // measured 0.166

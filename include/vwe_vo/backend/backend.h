@@ -119,7 +119,9 @@ struct BackendStats {
   double yaw_scan_abs_sum_rad_s = 0.0;  // sum of |offset| chosen [rad/s]
   size_t outlier_runs_tried = 0;        // runs of arcs tried at their neighbours' rates
   size_t outlier_runs_replaced = 0;     // refinements that started from such a run replaced
-  double last_gain = 0.0;               // objective ratio final / initial of the last refinement
+  size_t stop_ramps = 0;   // braking ramps into standstills fit from the event rate (no /odom)
+  size_t start_ramps = 0;  // ramps out of standstills fit from the event rate (no /odom)
+  double last_gain = 0.0;  // objective ratio final / initial of the last refinement
 };
 
 /// The IMU's part of the back-end (Backend::enableImu).
@@ -439,6 +441,9 @@ class Backend {
   int64_t overruled_until_ns_ = -1;  // end of the newest arcs replaced by scanStart
   // Start of the earliest speed ramp the last extension refit (spline time; inf: none).
   double ramp_from_u_ = std::numeric_limits<double>::infinity();
+  // The newest standstill edges whose stop / start ramp was counted (stats_.stop_ramps, ...).
+  int64_t counted_stop_edge_ns_ = std::numeric_limits<int64_t>::min();
+  int64_t counted_start_edge_ns_ = std::numeric_limits<int64_t>::min();
   BackendStats stats_;
 };
 
