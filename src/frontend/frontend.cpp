@@ -479,7 +479,9 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
           {budget / volume_thinning_, size_t(100), size_t(10 * options_.subsample_time_slices)});
       ++stats_.windows_thinned;
     }
-    const EventVector seen = offGround(events);
+    EventVector off_ground;  // without the mask the window's events are voted as they are
+    if (options_.ground_mask) off_ground = offGround(events);
+    const EventVector& seen = options_.ground_mask ? off_ground : events;
     stats_.events_ground_masked += events.size() - seen.size();
     const EventVector sub = subsampleEventsPerTimeSlice(
         seen, t0, t1, budget, options_.subsample_time_slices, options_.seed + stats_.windows);

@@ -150,8 +150,8 @@ int main(int argc, char** argv) {
     }
     std::ostream& out = args.count("--out") ? file : std::cout;
     out << "# window " << vwe_vo::nsToSec(t0) << " .. " << vwe_vo::nsToSec(t1) << " s, "
-        << window.size() << " events (" << window.size() - seen.size() << " off the ground mask, "
-        << sub.size() << " voted), v " << v << " m/s";
+        << window.size() << " events (" << window.size() - seen.size() << " masked, " << sub.size()
+        << " voted), v " << v << " m/s";
     if (std::isfinite(omega_true))
       out << ", true omega " << (omega_true * vwe_vo::kDegPerRad) << " deg/s";
     out << "\nomega_deg_s,contrast\n";
