@@ -145,10 +145,10 @@ Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera,
   }
 }
 
-EventVector Frontend::offGround(const EventVector& events) const {
+const EventVector& Frontend::offGround(const EventVector& events, EventVector* storage) const {
   if (!options_.ground_mask) return events;
-  EventVector seen = ground_mask_.filter(events);
-  return seen.size() >= options_.min_events ? seen : events;
+  *storage = ground_mask_.filter(events);
+  return storage->size() >= options_.min_events ? *storage : events;
 }
 
 void Frontend::reset() {
@@ -479,9 +479,8 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
           {budget / volume_thinning_, size_t(100), size_t(10 * options_.subsample_time_slices)});
       ++stats_.windows_thinned;
     }
-    EventVector off_ground;  // without the mask the window's events are voted as they are
-    if (options_.ground_mask) off_ground = offGround(events);
-    const EventVector& seen = options_.ground_mask ? off_ground : events;
+    EventVector off_ground;
+    const EventVector& seen = offGround(events, &off_ground);
     stats_.events_ground_masked += events.size() - seen.size();
     const EventVector sub = subsampleEventsPerTimeSlice(
         seen, t0, t1, budget, options_.subsample_time_slices, options_.seed + stats_.windows);

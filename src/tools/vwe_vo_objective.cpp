@@ -138,7 +138,8 @@ int main(int argc, char** argv) {
 
     const vwe_vo::CameraModel camera(cfg.camera);
     vwe_vo::Frontend frontend(cfg.frontend, camera, cfg.T_base_cam);
-    const vwe_vo::EventVector seen = frontend.offGround(window);
+    vwe_vo::EventVector off_ground;
+    const vwe_vo::EventVector& seen = frontend.offGround(window, &off_ground);
     const vwe_vo::EventVector sub =
         vwe_vo::subsampleEventsPerTimeSlice(seen, t0, t1, cfg.frontend.max_events_per_volume,
                                             cfg.frontend.subsample_time_slices, cfg.frontend.seed);

@@ -66,13 +66,15 @@ TEST(Frontend, VotesTheEventsOffTheNearGroundUnlessTooFewRemain) {
   ASSERT_FALSE(mask.keeps(floor));
   ASSERT_TRUE(mask.keeps(wall));
   const EventVector mixed = {floor, wall, floor, wall, wall, floor, wall};
-  const EventVector seen = fe.offGround(mixed);
+  EventVector storage;
+  const EventVector seen = fe.offGround(mixed, &storage);
   ASSERT_EQ(seen.size(), 4u);
   for (const PixelEvent& e : seen) EXPECT_EQ(e.y, wall.y);
   const EventVector few = {floor, wall, floor, wall, floor};  // 2 off the ground < min_events
-  EXPECT_EQ(fe.offGround(few).size(), few.size());
+  EXPECT_EQ(fe.offGround(few, &storage).size(), few.size());
   o.ground_mask = false;
-  EXPECT_EQ(Frontend(o, camera(), defaultTBaseCam()).offGround(mixed).size(), mixed.size());
+  EXPECT_EQ(Frontend(o, camera(), defaultTBaseCam()).offGround(mixed, &storage).size(),
+            mixed.size());
 }
 
 // A node behind its input thins its windows instead of skipping them: each window votes

@@ -84,7 +84,7 @@ struct FrontendOptions {
   // the same ground is seen again from nearer and further poses, and masking it there made the
   // refined yaw rate worse (street_long with /odom, true arcs: 0.45 -> 0.57 deg/s). Indoors
   // (camera 0.3 m up, planes from 0.8 m) indoor_long's refined yaw RPE with /odom 0.23 -> 0.17
-  // deg/s; car.yaml turns it off (docs/method.md).
+  // deg/s; on the car street_drive's 1.03 -> 0.69 (docs/method.md).
   bool ground_mask = true;
   uint64_t seed = 1;  // subsampling seed
   /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
@@ -169,8 +169,9 @@ class Frontend {
                              double omega_center, double half_range,
                              const WindowScan& setup = WindowScan());
   /// The events of a window the front-end votes from: those off the near ground (ground_mask),
-  /// or all of them if the mask would leave fewer than min_events.
-  EventVector offGround(const EventVector& events) const;
+  /// kept in *storage, or `events` itself without the mask or if it would leave fewer than
+  /// min_events.
+  const EventVector& offGround(const EventVector& events, EventVector* storage) const;
   /// Contrast of the VWE of `events` for an arc (omega, v) about t_ref (with the one-sided
   /// window's planes if deep_planes).
   double contrast(const EventVector& events, int64_t t_ref_ns, double omega, double v,
