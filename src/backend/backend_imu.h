@@ -16,7 +16,8 @@ struct Backend::Imu {
         T_base_imu(T_base_imu_),
         attitude(o, T_base_imu_.translation()),
         bias(o.bias_time_constant_s, o.bias_sigma_deg_s / kDegPerRad,
-             o.bias_sigma_min_deg_s / kDegPerRad, o.bias_max_jump_deg_s / kDegPerRad) {}
+             o.bias_sigma_min_deg_s / kDegPerRad, o.bias_max_jump_deg_s / kDegPerRad,
+             o.bias_huber_k) {}
   /// After a reset of the back-end: the samples and the attitude start again, the bias (a property
   /// of the sensor) is kept.
   void reset() {

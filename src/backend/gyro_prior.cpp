@@ -114,8 +114,11 @@ bool GyroBiasFilter::add(double measured_bias, double dt_s, double sigma_m) {
     return false;
   }
   ++n_;
+  const double r = std::abs(measured_bias - bias_);
+  const double spread = std::sqrt(sigma_m * sigma_m + 1.0 / info_);
   info_ *= std::exp(-std::max(0.0, dt_s) / tau_s_);
-  const double w = 1.0 / (sigma_m * sigma_m);
+  double w = 1.0 / (sigma_m * sigma_m);
+  if (huber_k_ > 0 && r > huber_k_ * spread) w *= huber_k_ * spread / r;
   info_ += w;
   bias_ += w / info_ * (measured_bias - bias_);
   return true;

@@ -235,6 +235,7 @@ void fields(Archive& a, ImuFusionOptions* o) {
   a("bias_sigma_deg_s", &o->bias_sigma_deg_s);
   a("bias_sigma_min_deg_s", &o->bias_sigma_min_deg_s);
   a("bias_max_jump_deg_s", &o->bias_max_jump_deg_s);
+  a("bias_huber_k", &o->bias_huber_k);
   a("bias_window_sigma_deg_s", &o->bias_window_sigma_deg_s);
   a("attitude_time_constant_s", &o->attitude_time_constant_s);
   a("attitude_bias_time_constant_s", &o->attitude_bias_time_constant_s);

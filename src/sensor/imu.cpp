@@ -32,6 +32,7 @@ void ImuFusionOptions::validate(const std::string& section) const {
     fail("bias_sigma_min_deg_s must be in (0, bias_sigma_deg_s] deg/s");
   if (!(bias_max_jump_deg_s > 0 && bias_max_jump_deg_s <= 100))
     fail("bias_max_jump_deg_s must be in (0, 100] deg/s");
+  if (!(bias_huber_k >= 0 && bias_huber_k <= 100)) fail("bias_huber_k must be in [0, 100]");
   if (!(bias_window_sigma_deg_s > 0 && bias_window_sigma_deg_s <= 10))
     fail("bias_window_sigma_deg_s must be in (0, 10] deg/s");
   if (!(attitude_time_constant_s > 0.01 && attitude_time_constant_s <= 1000))

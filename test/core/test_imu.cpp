@@ -304,6 +304,28 @@ TEST(Imu, GyroPriorGradientMatchesCentralFiniteDifferences) {
   test::expectPriorGradientMatchesCentralDifferences(spline.get(), first_free, prior, 0.003, 1e-5);
 }
 
+TEST(Imu, GyroBiasFilterDownWeighsFarMeasurementsByHuber) {
+  // Within huber_k spreads of the estimate a measurement keeps its full weight.
+  GyroBiasFilter near(1e9, 0.5, 0.02, 10.0, 1.0), plain(1e9, 0.5, 0.02, 10.0);
+  near.add(1.0, 0.0, 1.0);
+  plain.add(1.0, 0.0, 1.0);
+  EXPECT_NEAR(near.bias(), 1.0 / 5.0, 1e-12);  // prior information 4, the measurement's 1
+  EXPECT_DOUBLE_EQ(near.bias(), plain.bias());
+  // Further, it keeps huber_k * spread / |r| of it; the spread is its own and the prior's.
+  GyroBiasFilter far(1e9, 0.5, 0.02, 10.0, 1.0);
+  far.add(3.0, 0.0, 1.0);
+  const double w = std::sqrt(1.0 + 0.25) / 3.0;
+  EXPECT_NEAR(far.bias(), 3.0 * w / (4.0 + w), 1e-12);
+  EXPECT_NEAR(far.sigma(), 1.0 / std::sqrt(4.0 + w), 1e-12);
+  EXPECT_EQ(far.refused(), 0u);
+  // A run of windows pulled one way by 1.8 among ones around the truth (0.2, spread 1): the
+  // estimate stays nearer the truth than the plain weighted mean.
+  GyroBiasFilter huber(1e9, 0.5, 0.02, 10.0, 1.0), mean(1e9, 0.5, 0.02, 10.0);
+  const double m[] = {0.9, -0.5, 0.6, -0.2, -1.6, -1.6, -1.6, 0.4, 0.7, -0.1, 0.3, 0.5, 0.2, 0.6};
+  for (double x : m) huber.add(x, 1.0, 1.0), mean.add(x, 1.0, 1.0);
+  EXPECT_LT(std::abs(huber.bias() - 0.2), std::abs(mean.bias() - 0.2) - 0.03);
+}
+
 TEST(Imu, GyroBiasFilterWeighsByInformationThenForgetsSlowly) {
   GyroBiasFilter f(20.0, 0.5, 0.02, 1.0);
   EXPECT_DOUBLE_EQ(f.sigma(), 0.5);

@@ -35,7 +35,10 @@ struct ImuFusionOptions {
   double bias_sigma_min_deg_s = 0.005;  // each window's solve holds the bias at the filter's
                                         // estimate to this (a window's own fit let its events'
                                         // offset through); the filter's spread is at least this
-  double bias_max_jump_deg_s = 1.0;     // a window's bias further from the estimate is refused
+  double bias_max_jump_deg_s = 1.5;     // a window's bias further from the estimate is refused:
+                                        // past the offset scan's reach (+-2 window spreads)
+  double bias_huber_k = 1.0;  // a window's bias further than this many spreads (its own and the
+                              // filter's in quadrature) is down-weighted (Huber; 0: off) [1]
   // Moving, each refined window measures the bias as the gyro's offset from the yaw rate its
   // volumes prefer: the spline's new part is turned by yaw-rate offsets of +-1 and +-2 times
   // this and the contrast's peak found by a parabola. It is also the measurement's spread: the
