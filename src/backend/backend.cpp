@@ -1050,7 +1050,7 @@ bool ContinuousOdometry::next(const Backend& backend, int64_t t_ns, Pose3* T_odo
   has_previous_ = true;
   t_previous_ns_ = t_ns;
   T_previous_ = *T_odom_base;
-  if (backend.usesImu())
+  if (backend.tiltInPose())
     T_odom_base->linear() = T_odom_base->linear() * backend.tiltAt(t_ns).rotation();
   return true;
 }

@@ -15,6 +15,7 @@ void Backend::enableImu(const ImuFusionOptions& options, const Pose3& T_cam_imu)
 const BackendImuStats& Backend::imuStats() const {
   imu_->stats.attitude = imu_->attitude.stats();
   imu_->stats.gyro_bias_base = imu_->attitude.bias();
+  imu_->stats.tilt_in_pose = tiltInPose();
   return imu_->stats;
 }
 
@@ -38,7 +39,7 @@ Tilt Backend::tiltAt(int64_t t_ns) const {
 }
 
 Pose3 Backend::withTilt(int64_t t_ns, const Pose3& T_planar) const {
-  if (imu_->tilts.empty()) return T_planar;
+  if (!tiltInPose() || imu_->tilts.empty()) return T_planar;
   Pose3 T = T_planar;
   T.linear() = T_planar.linear() * imu_->tilts.at(t_ns).rotation();
   return T;

@@ -427,6 +427,7 @@ nlohmann::json OfflinePipeline::report() const {
           {"bias_refused", m.bias_refused},
           {"yaw_rate_bias_deg_s", m.yaw_bias_rad_s * kDegPerRad},
           {"yaw_rate_bias_sigma_deg_s", m.yaw_bias_sigma_rad_s * kDegPerRad},
+          {"tilt_in_pose", m.tilt_in_pose},
           {"gyro_bias_base_deg_s",
            {m.gyro_bias_base.x() * kDegPerRad, m.gyro_bias_base.y() * kDegPerRad,
             m.gyro_bias_base.z() * kDegPerRad}},

@@ -72,6 +72,7 @@ void BackendNode::readParameters() {
   params.read("publish_tf", &o.publish_tf);
   params.read("nice", &o.nice);
   params.read("use_imu", &o.use_imu);
+  params.read("use_odom", &o.use_odom);
   if (o.config_path.empty()) o.config_path = defaultConfigDir() + "/vwe_vo.yaml";
   params.finish();
   o.validate();
@@ -154,7 +155,12 @@ void BackendNode::workerLoop() {
   try {
     camera_ = std::make_unique<CameraModel>(calibration);
     backend_ = std::make_unique<Backend>(backend_options_, *camera_, T_base_cam_);
+    backend_->setSpeedsMeasured(node_options_.use_odom);
     if (node_options_.use_imu) backend_->enableImu(imu_options_, imu_options_.T_cam_imu());
+    if (node_options_.use_imu && !backend_->tiltInPose())
+      ROS_INFO(
+          "backend_node: ~use_imu without ~use_odom: the gyro's yaw rate is fused, the pose stays "
+          "planar (pitch and roll need the vehicle's acceleration, unknown without /odom)");
     BackendDriver::Callbacks callbacks;
     callbacks.odometry = [this](int64_t t_ns, const Pose3& T, double v, double omega) {
       publishOdometry(t_ns, T, v, omega);

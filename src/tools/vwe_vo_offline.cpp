@@ -77,7 +77,9 @@ const char* kUsage =
     "  The front-end's outputs are unchanged; report.json says how many arcs were replaced.\n"
     "  --use-imu: the back-end fuses the IMU (bag: --imu-topic, ECD: DIR/imu.txt; config imu:):\n"
     "  the gyro's yaw rate as a measurement with its bias estimated, pitch and roll from gyro and\n"
-    "  accelerometer in backend.tum and odom.tum; report.json stages.backend.imu has the bias.\n";
+    "  accelerometer in backend.tum and odom.tum (with --use-odom: without it the vehicle's\n"
+    "  acceleration is unknown and the pose stays planar); report.json stages.backend.imu has\n"
+    "  the bias.\n";
 
 /// Duration of the ECD folder's ground truth if there is one (for the progress line), else 0.
 double groundTruthDuration(const std::string& dir) {

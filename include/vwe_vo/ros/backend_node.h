@@ -45,6 +45,8 @@ struct BackendNodeOptions {
   int nice = 0;                    // ~nice: CPU priority (0..19; higher yields to the front-end)
   int threads = 0;                 // ~threads: voting threads (0: the config's volume.num_threads)
   bool use_imu = false;   // ~use_imu: fuse /dvs/imu (gyro yaw rate, pitch and roll; config imu:)
+  bool use_odom = false;  // ~use_odom: the arcs' speeds are /odom's (frontend_node's ~use_odom);
+                          // without, only their scale (Backend::setSpeedsMeasured) and no tilt
   void validate() const;  // throws std::invalid_argument naming the parameter
 };
 
