@@ -367,8 +367,7 @@ class Backend {
   /// middles (poses up to finalUntil() are final, the ones after it extrapolate the newest arc),
   /// else each arc's rates over its own window. False if t_ns is outside [first arc, newest arc].
   /// With the IMU and measured speeds (tiltInPose) the pose is composed with the estimated tilt
-  /// (tiltAt); the rates
-  /// are the planar pose's.
+  /// (tiltAt); the rates are the planar pose's.
   bool poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const;
   /// The same without the tilt (the planar pose; equal to poseAt without the IMU).
   bool planarPoseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const;
