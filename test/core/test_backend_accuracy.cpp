@@ -241,10 +241,9 @@ TEST(BackendAccuracy, StreetDriveWeavingInTheRightLane) {
 // against the yaw-rate offset the volumes prefer (Huber-weighted). Measured: 3D rotation RMSE
 // 0.237, tilt 0.129, translation direction 0.172 deg/s, yaw-rate bias 0.077 deg/s low (the
 // street's windows measure it to about 1 deg/s each; the estimate's own sigma at the end is
-// 0.25 deg/s). With the arcs'
-// rates as the first fit and the bias from the spline's own offset: 0.496 / 0.117 / 0.284; the
-// speed's difference cut at the newest arc: 0.82, 0.72, 0.80 on the bag; the accelerometer's
-// correction at 1 s instead of car.yaml's 3 s: tilt 0.219.
+// 0.25 deg/s). With the arcs' rates as the first fit and the bias from the spline's own offset:
+// 0.496 / 0.117 / 0.284; the speed's difference cut at the newest arc: 0.82, 0.72, 0.80 on the
+// bag; the accelerometer's correction at 1 s instead of car.yaml's 3 s: tilt 0.219.
 TEST(BackendAccuracy, StreetDriveOnItsSuspensionWithTheImu) {
   // (the body's tilt is in the pose: street_drive pitches and rolls 1-2 deg)
   const PipelineRun r = run("street_drive", "car.yaml", 0.0, true);
