@@ -987,7 +987,7 @@ int64_t Backend::oldestArcTime() const {
 
 bool Backend::poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const {
   if (!planarPoseAt(t_ns, T_odom_base, v, omega)) return false;
-  if (imu_) *T_odom_base = withTilt(t_ns, *T_odom_base);
+  if (tiltInPose()) *T_odom_base = withTilt(t_ns, *T_odom_base);
   return true;
 }
 
@@ -1029,7 +1029,7 @@ Trajectory3 Backend::sampleTrajectory(double rate_hz) const {
     out.push_back({t, spline_->T_odom_base(spline_->toSplineTime(t))});
   if (out.empty() || out.back().t_ns < t1)
     out.push_back({t1, spline_->T_odom_base(spline_->toSplineTime(t1))});
-  if (imu_)
+  if (tiltInPose())
     for (auto& s : out) s.T = withTilt(s.t_ns, s.T);
   return out;
 }

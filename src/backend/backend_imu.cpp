@@ -39,7 +39,7 @@ Tilt Backend::tiltAt(int64_t t_ns) const {
 }
 
 Pose3 Backend::withTilt(int64_t t_ns, const Pose3& T_planar) const {
-  if (!tiltInPose() || imu_->tilts.empty()) return T_planar;
+  if (imu_->tilts.empty()) return T_planar;
   Pose3 T = T_planar;
   T.linear() = T_planar.linear() * imu_->tilts.at(t_ns).rotation();
   return T;
