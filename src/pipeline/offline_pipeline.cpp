@@ -399,6 +399,7 @@ nlohmann::json OfflinePipeline::report() const {
         {"outlier_runs_replaced", b.outlier_runs_replaced},
         {"stop_ramps", b.stop_ramps},
         {"start_ramps", b.start_ramps},
+        {"standstill_gaps_closed", b.standstill_gaps_closed},
         {"mean_yaw_scan_offset_deg_s",
          b.yaw_scans > 0 ? b.yaw_scan_abs_sum_rad_s / double(b.yaw_scans) * 180.0 / M_PI : 0.0},
         {"arcs_held", b.arcs_held},

@@ -741,6 +741,63 @@ TEST(Backend, StandstillGivesFinitePosesAndSkipsVolumes) {
   for (double u = 1.1; u < 2.2; u += 0.01) EXPECT_TRUE(s.T_odom_base(u).isApprox(held, 1e-12)) << u;
   EXPECT_GT(backend.stats().volumes_skipped, 0u);
   for (const StampedPose& p : backend.sampleTrajectory(50.0)) ASSERT_TRUE(p.T.matrix().allFinite());
+  // The vehicle starts again where it stood (closeStandstillGaps after the refinements).
+  const BSpline::Interval& stop = s.standstills()[1];
+  EXPECT_LT((s.position(stop.to_s) - s.position(stop.from_s)).norm(), 1e-9);
+  EXPECT_GT(backend.stats().standstill_gaps_closed, 0u);
+}
+
+namespace {
+
+/// A path along x at 0.3 m/s that stands still in [1.6, 3.2] s (spline time) and then goes
+/// on sideways-shifted by (4, -2) mm, as a refinement may leave it: uniform cubic knots 0.2 s.
+BSpline gappedStandstillSpline(double stop_from_s, double stop_to_s) {
+  const int p = 3, n = 30;
+  const double dk = 0.2;
+  std::vector<double> knots(n + p + 1);
+  for (int k = 0; k <= n + p; ++k) knots[k] = (k - p) * dk;
+  std::vector<Vec2> P(n);
+  for (int i = 0; i < n; ++i) {
+    const double t = (i - 1) * dk;  // the point's Greville abscissa
+    const double x = 0.3 * (std::min(t, stop_from_s) + std::max(0.0, t - stop_to_s));
+    P[i] = Vec2(x, 0.02 * std::sin(t)) +
+           (t > 0.5 * (stop_from_s + stop_to_s) ? Vec2(0.004, -0.002) : Vec2(Vec2::Zero()));
+  }
+  BSpline s(p, knots, P, 0);
+  s.setStandstills({{stop_from_s, stop_to_s}});
+  return s;
+}
+
+}  // namespace
+
+TEST(Backend, ClosingAStandstillGapStartsThePathWhereItStoodWithItsShape) {
+  BSpline s = gappedStandstillSpline(1.6, 3.2);
+  const BSpline before = s;
+  const double a = 1.6, b = 3.2;
+  ASSERT_GT((s.position(b) - s.position(a)).norm(), 1e-3);  // the gap to close
+  EXPECT_EQ(closeStandstillGaps(&s, 0), 1);
+  EXPECT_LT((s.position(b) - s.position(a)).norm(), 1e-12);
+  for (double u = s.validFrom(); u <= a; u += 0.01)
+    EXPECT_LT((s.position(u) - before.position(u)).norm(), 1e-12) << u;
+  for (double u = b; u <= s.validTo(); u += 0.01) {
+    const Vec2 shape = s.position(u) - s.position(b),
+               shape0 = before.position(u) - before.position(b);
+    EXPECT_LT((shape - shape0).norm(), 1e-12) << u;
+    EXPECT_NEAR(s.heading(u), before.heading(u), 1e-12) << u;
+  }
+  EXPECT_EQ(closeStandstillGaps(&s, 0), 0);  // closed: nothing left to move
+
+  // Left open: control points from `first` on cannot reach into the standstill, the standstill
+  // is shorter than a blend of degree knot spans, or the vehicle still stands at the end.
+  BSpline fixed = gappedStandstillSpline(1.6, 3.2);
+  EXPECT_EQ(closeStandstillGaps(&fixed, 20), 0);
+  BSpline shorter = gappedStandstillSpline(1.6, 2.1);
+  EXPECT_EQ(closeStandstillGaps(&shorter, 0), 0);
+  BSpline standing = gappedStandstillSpline(1.6, 3.2);
+  standing.setStandstills({{1.6, standing.validTo()}});
+  EXPECT_EQ(closeStandstillGaps(&standing, 0), 0);
+  for (double u = standing.validFrom(); u <= standing.validTo(); u += 0.05)
+    EXPECT_LT((standing.position(u) - before.position(u)).norm(), 1e-15) << u;
 }
 
 TEST(Backend, OptionsValidateNamesTheField) {

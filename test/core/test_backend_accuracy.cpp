@@ -156,12 +156,13 @@ TEST(BackendAccuracy, IndoorDriveWithoutOdometryBrakesIntoItsStops) {
   EXPECT_EQ(r.backend_stats.stop_ramps, 2u);  // one into each stop, counted once
   EXPECT_EQ(r.backend_stats.start_ramps, 2u);
   EXPECT_GE(r.backend.tracked_fraction, 0.95);
-  // Measured 0.221; 0.302 with the braking ramps each fit within its own window only (the last
+  // Measured 0.220; 0.302 with the braking ramps each fit within its own window only (the last
   // 0.4 s before a stop braked hard and the fit rang), 0.264 without ramps.
   EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 0.28);
-  // Measured 0.500 (ramps into and out of the stops); 0.560 with braking ramps only, 0.805 at
-  // the cruise speed into the stops: the chords of the bends drift.
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.6);
+  // Measured 0.262; 0.331 with the path after each stop left going on from where the refinement
+  // put it, millimetres from where the stop held the pose (closeStandstillGaps); without the
+  // ramps into and out of the stops the chords of the bends drift (0.8 at the cruise speed).
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.4);
   std::printf("[backend accuracy] indoor_drive without odometry: yaw RPE %.3f deg/s\n",
               r.backend.rpe.yaw_rmse_deg_s);
 }

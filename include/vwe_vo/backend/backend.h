@@ -121,6 +121,8 @@ struct BackendStats {
   size_t outlier_runs_replaced = 0;     // refinements that started from such a run replaced
   size_t stop_ramps = 0;   // braking ramps into standstills fit from the event rate (no /odom)
   size_t start_ramps = 0;  // ramps out of standstills fit from the event rate (no /odom)
+  size_t standstill_gaps_closed =
+      0;  // paths after a standstill moved to start where it held the pose (per refinement)
   double last_gain = 0.0;  // objective ratio final / initial of the last refinement
 };
 
@@ -280,6 +282,16 @@ class MultiVolumeCost : public ceres::FirstOrderFunction {
   double deformation_weight_;
   bool evaluate(const double* x, double* cost, double* gradient, bool deformation) const;
 };
+
+/// Inside a standstill [a, b] a BSpline holds the pose at c(a), and after it the path goes on
+/// from c(b): nothing in the refinement keeps c(b) at c(a) (no volume sees a standstill), and a
+/// gap between them is a jump of the vehicle where it starts again. For each standstill that
+/// has ended (b < validTo()), this translates the control points from the first j >= first with
+/// knot j >= a on by c(a) - c(b), if knot j + degree <= b: the curve after knot j + degree moves
+/// whole, the curve before knot j not at all, and the blend between lies where the pose is held.
+/// The path after b then starts exactly at c(a) with its shape unchanged. Returns the number of
+/// gaps closed (standstills too short for such a j, or whose j is before `first`, stay open).
+int closeStandstillGaps(BSpline* spline, int first);
 
 /// Least squares of the control points [first, n) of `spline` to positions p_odom at spline
 /// times u (the others fixed), with a second-difference smoothness prior of weight w on the free
