@@ -206,6 +206,7 @@ void fields(Archive& a, EmvsOptions* o, GlobalMapOptions* global_map) {
   a("nms_radius_px", &o->nms_radius_px);
   a("nms_planes", &o->nms_planes);
   a("min_ray_contrast", &o->min_ray_contrast);
+  a("per_camera_min_depth", &o->per_camera_min_depth);
   a("local_max_ratio", &o->local_max_ratio);
   a("local_max_window_px", &o->local_max_window_px);
   a("median_filter_size", &o->median_filter_size);

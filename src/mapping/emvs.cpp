@@ -389,7 +389,8 @@ bool EmvsMapper::closeKeyframe(EmvsKeyframe* kf) {
   for (size_t k = 0; k < kf_slices_.size(); ++k) {
     const Pose3 T_ref_cam = T_ref_odom * kf_slices_[k].T_odom_cam;
     poses[k] =
-        RayPose<float>(T_ref_cam.linear().cast<float>(), T_ref_cam.translation().cast<float>());
+        RayPose<float>(T_ref_cam.linear().cast<float>(), T_ref_cam.translation().cast<float>(),
+                       options_.per_camera_min_depth ? float(options_.volume.z_min_m) : 0.0f);
   }
   // Rays in float, split over the threads; a ray pointing away from the reference view is
   // marked with a NaN and dropped below.

@@ -26,8 +26,13 @@ namespace vwe_vo {
 
 struct EmvsOptions {
   EmvsOptions();
-  VolumeOptions volume;            // the DSI (defaults: full resolution, 100 planes, 0.5-8 m) and
-                                   // its pose slices (volume.pose_slice_s, as the VWE)
+  VolumeOptions volume;  // the DSI (defaults: full resolution, 100 planes, 0.5-8 m) and
+                         // its pose slices (volume.pose_slice_s, as the VWE)
+  bool per_camera_min_depth =
+      true;  // a ray votes only from volume.z_min_m in front of its own camera (along the
+             // reference view's axis), not only of the reference view: driving forward, the
+             // rays of the cameras ahead of the reference meet its nearest planes close to their
+             // own centres and pile up around the focus of expansion there
   int adaptive_kernel_size = 5;    // adaptive threshold: Gaussian window [grid px], odd >= 3
   double adaptive_sigma_px = 0.0;  // its sigma [grid px]; 0: from the window as in OpenCV
   double adaptive_c =

@@ -22,17 +22,19 @@ inline int64_t poseSliceTime(int64_t t_ns, int64_t slice_ns) {
 }
 
 /// A camera pose in the reference camera frame as rays need it: the ray of bearing f is
-/// o + lambda R f; in front of the reference view where rho = 1 / z < rho_max.
+/// o + lambda R f; it votes where rho = 1 / z < rho_max, in front of the camera by at least
+/// min_depth along the reference view's axis (z > o_z + min_depth; 0: in front of it).
 template <typename S>
 struct RayPose {
   using Vec3S = Eigen::Matrix<S, 3, 1>;
   using Mat3S = Eigen::Matrix<S, 3, 3>;
   RayPose() = default;
-  RayPose(const Mat3S& R_ref_cam, const Vec3S& t_ref_cam)
+  RayPose(const Mat3S& R_ref_cam, const Vec3S& t_ref_cam, S min_depth = S(0))
       : R(R_ref_cam),
         o(t_ref_cam),
         // lambda = (z - o_z) / d_z > 0  <=>  z > o_z  <=>  rho < 1 / o_z (when o_z > 0)
-        rho_max(o.z() > 0 ? float(S(1) / o.z()) : std::numeric_limits<float>::infinity()) {}
+        rho_max(o.z() + min_depth > 0 ? float(S(1) / (o.z() + min_depth))
+                                      : std::numeric_limits<float>::infinity()) {}
   Mat3S R = Mat3S::Identity();
   Vec3S o = Vec3S::Zero();
   float rho_max = std::numeric_limits<float>::infinity();
