@@ -16,6 +16,8 @@
 #include "vwe_vo/io/ply.h"
 #include "vwe_vo/mapping/emvs.h"
 #include "vwe_vo/trajectory/ackermann_arc.h"
+#include "vwe_vo/vwe/projective_volume.h"
+#include "vwe_vo/vwe/ray_builder.h"
 
 using namespace vwe_vo;
 
@@ -153,6 +155,43 @@ TEST(Emvs, FrontalWallIsAtTheRightDepth) {
   EXPECT_EQ(kf.t_kf_ns % slice_ns, slice_ns / 2);
   // The depth map holds exactly the cloud.
   EXPECT_EQ(size_t(cv::countNonZero(kf.depth_m)), kf.points_cam.size());
+}
+
+// per_camera_min_depth: a camera 1 m ahead of the reference votes from z_min_m in front of itself
+// (depth > 3 m of the reference), not from the reference's nearest plane (2 m); behind the
+// reference the reference's own range is the stricter one.
+TEST(Emvs, RaysVoteFromTheNearestDepthInFrontOfTheirOwnCamera) {
+  VolumeOptions vo;
+  vo.grid_scale = 1.0;
+  vo.margin_px = 0;
+  vo.num_planes = 40;
+  vo.z_min_m = 2.0;
+  vo.z_max_m = 40.0;
+  vo.num_threads = 1;
+  const CameraCalibration c = testCalibration();
+  const VolumeRayBuilder<float> make_ray(c.fx, c.fy, c.cx, c.cy);
+  for (const float min_depth : {0.0f, 2.0f}) {
+    ProjectiveVolume volume(vo, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
+    const RayPose<float> pose(Eigen::Matrix3f::Identity(), Eigen::Vector3f(0.0f, 0.0f, 1.0f),
+                              min_depth);
+    EXPECT_FLOAT_EQ(pose.rho_max, 1.0f / (1.0f + min_depth));
+    VolumeRay ray;
+    ASSERT_TRUE(make_ray(pose, Eigen::Vector3f(0.05f, 0.02f, 1.0f).normalized(), &ray));
+    volume.vote({ray}, false);
+    for (int l = 0; l < volume.numPlanes(); ++l) {
+      double plane_sum = 0.0;
+      for (int y = 0; y < volume.height(); ++y)
+        for (int x = 0; x < volume.width(); ++x) plane_sum += volume.at(x, y, l);
+      const double z = volume.planeDepth(l);
+      if (z > 1.0 + min_depth + 1e-3)
+        EXPECT_NEAR(plane_sum, 1.0, 1e-4) << "plane at " << z << " m, min_depth " << min_depth;
+      else
+        EXPECT_EQ(plane_sum, 0.0) << "plane at " << z << " m, min_depth " << min_depth;
+    }
+  }
+  EXPECT_EQ(
+      RayPose<float>(Eigen::Matrix3f::Identity(), Eigen::Vector3f(0.0f, 0.0f, -3.0f), 2.0f).rho_max,
+      std::numeric_limits<float>::infinity());
 }
 
 TEST(Emvs, FrontalWallIsPlanar) {
