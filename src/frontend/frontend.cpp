@@ -442,6 +442,11 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
   const double duration = dtSec(t1, t0);
   bool odom_standstill = false, measured = false;
   double v = speedAt(t0, t1, &odom_standstill, &measured);
+  const bool cut = options_.per_camera_min_depth && measured;
+  objective_.setPerCameraMinDepth(cut);
+  scan_objectives_.setPerCameraMinDepth(cut);
+  if (one_sided_objective_) one_sided_objective_->setPerCameraMinDepth(cut);
+  if (one_sided_scan_objectives_) one_sided_scan_objectives_->setPerCameraMinDepth(cut);
   const double rate = double(events.size()) / std::max(duration, 1e-6);
   // Without odometry, slow windows (braking into a stop, starting from one) are driven at a
   // speed in proportion to their event rate; the others update the moving rate.

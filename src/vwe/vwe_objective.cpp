@@ -54,7 +54,8 @@ void VweObjective::buildChunk(const EventVector& events, size_t begin, size_t en
     if (t != pose_t) {
       const Pose3 T =
           planar ? model.T_Cr_CtPlanar(t, &lj) : model.T_Cr_Ct(t, with_jacobian ? &pj : nullptr);
-      pose = RayPose<double>(T.linear(), T.translation());
+      pose = RayPose<double>(T.linear(), T.translation(),
+                             per_camera_min_depth_ ? volume_->options().z_min_m : 0.0);
       pose_t = t;
     }
     const Vec3 f = camera_.bearing(e.x, e.y).cast<double>();
@@ -169,6 +170,11 @@ VweObjectivePool::VweObjectivePool(const CameraModel& camera, const VolumeOption
         std::make_unique<ProjectiveVolume>(options, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
     wide_objective_ = std::make_unique<VweObjective>(camera, wide_volume_.get());
   }
+}
+
+void VweObjectivePool::setPerCameraMinDepth(bool on) {
+  for (auto& o : objectives_) o->setPerCameraMinDepth(on);
+  if (wide_objective_) wide_objective_->setPerCameraMinDepth(on);
 }
 
 void VweObjectivePool::run(int n, const std::function<void(int, VweObjective&)>& fn) {

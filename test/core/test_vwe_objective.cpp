@@ -173,6 +173,32 @@ TEST(VweObjective, ContrastFromClearingEqualsBruteForce) {
   }
 }
 
+// setPerCameraMinDepth: rays of the cameras ahead of the reference (forward motion) vote only
+// from z_min_m in front of their own camera, so fewer votes land; the grid still holds exactly
+// what the rays say (brute force over their rho_max).
+TEST(VweObjective, PerCameraMinDepthLeavesOutTheNearPlanesOfCamerasAhead) {
+  const CameraModel cam(testCalibration());
+  ProjectiveVolume volume(volumeOptions(2), cam.width(), cam.height(), 250, 250, 173, 130);
+  VweObjective obj(cam, &volume);
+  const YawForwardModel truth(0.2, 3.0);
+  const EventVector ev = makeEvents(cam, truth, 20000, 3);
+  const VweEvaluation off = obj.voteOnly(ev, truth);
+  volume.clear(obj.lastRays());
+  obj.setPerCameraMinDepth(true);
+  const VweEvaluation on = obj.voteOnly(ev, truth);
+  EXPECT_EQ(on.rays, off.rays);
+  EXPECT_LT(on.votes, off.votes);
+  size_t cut = 0;
+  for (const VolumeRay& r : obj.lastRays())
+    if (r.rho_max < float(1.0 / volume.options().z_min_m)) ++cut;
+  EXPECT_GT(cut, on.rays / 10);
+  double s = 0;
+  const double brute = bruteForceContrast(volume, obj.lastRays(), Contrast::kDensityPerVote, &s);
+  EXPECT_NEAR(s, double(on.votes), 1e-4 * s);
+  EXPECT_NEAR(on.contrast, brute, 1e-6 * brute);
+  volume.clear(obj.lastRays());
+}
+
 TEST(VweObjective, GradientMatchesCentralFiniteDifferences) {
   const CameraModel cam(testCalibration());
   for (Contrast contrast : {Contrast::kVariance, Contrast::kDensityPerVote}) {

@@ -45,6 +45,9 @@ class VweObjective {
   VweEvaluation voteOnly(const EventVector& events, const TrajectoryModel& model);
   const std::vector<VolumeRay>& lastRays() const { return rays_; }
   ProjectiveVolume& volume() const { return *volume_; }
+  /// Rays vote only from the volume's z_min_m in front of their own camera (along the reference
+  /// view's axis), not only of the reference view (RayPose's min_depth; off by default).
+  void setPerCameraMinDepth(bool on) { per_camera_min_depth_ = on; }
 
  private:
   VweEvaluation buildRays(const EventVector& events, const TrajectoryModel& model,
@@ -65,6 +68,7 @@ class VweObjective {
 
   const CameraModel& camera_;
   ProjectiveVolume* volume_;
+  bool per_camera_min_depth_ = false;
   ThreadPool pool_;
   std::vector<Chunk> chunks_;
   std::vector<VolumeRay> rays_;
@@ -93,6 +97,8 @@ class VweObjectivePool {
   /// calls at once, each with the objective of the thread running it, then the rest one by one
   /// with the all-threads objective.
   void run(int n, const std::function<void(int i, VweObjective& objective)>& fn);
+  /// VweObjective::setPerCameraMinDepth of every evaluator.
+  void setPerCameraMinDepth(bool on);
 
  private:
   ThreadPool pool_;
