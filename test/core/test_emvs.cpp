@@ -161,10 +161,7 @@ TEST(Emvs, FrontalWallIsAtTheRightDepth) {
 // (depth > 3 m of the reference), not from the reference's nearest plane (2 m); behind the
 // reference the reference's own range is the stricter one.
 TEST(Emvs, RaysVoteFromTheNearestDepthInFrontOfTheirOwnCamera) {
-  VolumeOptions vo;
-  vo.grid_scale = 1.0;
-  vo.margin_px = 0;
-  vo.num_planes = 40;
+  VolumeOptions vo = EmvsOptions().volume;  // full resolution, no margin, 40 planes
   vo.z_min_m = 2.0;
   vo.z_max_m = 40.0;
   vo.num_threads = 1;
