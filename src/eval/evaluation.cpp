@@ -352,6 +352,16 @@ double yawRateLag(const Trajectory3& gt, const Trajectory3& est, const Evaluatio
   return (shift - n_lag) * nsToSec(res_ns);
 }
 
+Trajectory3 planarProjection(const Trajectory3& trajectory) {
+  Trajectory3 out;
+  out.reserve(trajectory.size());
+  for (const StampedPose& p : trajectory) {
+    const Vec3& t = p.T.translation();
+    out.push_back({p.t_ns, planarPose(t.x(), t.y(), yawOf(p.T.linear()))});
+  }
+  return out;
+}
+
 EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est,
                           const EvaluationOptions& options) {
   options.validate();
@@ -363,6 +373,10 @@ EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est,
   res.est_end_ns = est.back().t_ns;
 
   res.rpe = rpeOver(gt, est, options.delta_s, options, cov);
+  const RpeResult floor = rpeOver(gt, planarProjection(gt), options.delta_s, options, cov);
+  res.planar_floor_rot_rmse_deg_s = floor.rot_rmse_deg_s;
+  res.planar_floor_tilt_rmse_deg_s = floor.tilt_rmse_deg_s;
+  res.planar_floor_trans_dir_rmse_deg_s = floor.trans_dir_rmse_deg_s;
   for (double d : options.extra_deltas_s) {
     try {
       res.rpe_extra.push_back(rpeOver(gt, est, d, options, cov));
@@ -463,6 +477,9 @@ nlohmann::json toJson(const EvaluationResult& r, bool with_series) {
   j["yaw_rpe_median_deg_s"] = num(r.rpe.yaw_median_deg_s);
   j["tilt_rpe_rmse_deg_s"] = num(r.rpe.tilt_rmse_deg_s);
   j["yaw_rate_lag_s"] = num(r.yaw_rate_lag_s);
+  j["planar_floor"] = {{"rot_rmse_deg_s", num(r.planar_floor_rot_rmse_deg_s)},
+                       {"tilt_rmse_deg_s", num(r.planar_floor_tilt_rmse_deg_s)},
+                       {"trans_dir_rmse_deg_s", num(r.planar_floor_trans_dir_rmse_deg_s)}};
   j["yaw_rate_lag_samples"] = r.yaw_rate_lag_samples;
   j["ate"] = {{"rmse_m", num(r.ate_rmse_m)},
               {"percent_of_path", num(r.ate_percent_of_path)},
@@ -553,6 +570,11 @@ std::string formatTable(const EvaluationResult& r) {
   for (const RpeResult* e : rpes)
     if (!e->error.empty())
       os << "  (Delta " << fmt("%g", e->delta_s) << " s: " << e->error << ")\n";
+  row("planar floor (flat truth)");
+  os << "rotation " << fmt("%.3f", r.planar_floor_rot_rmse_deg_s) << ", tilt "
+     << fmt("%.3f", r.planar_floor_tilt_rmse_deg_s) << ", trans. dir. "
+     << fmt("%.3f", r.planar_floor_trans_dir_rmse_deg_s) << " deg/s (Delta "
+     << fmt("%g", r.rpe.delta_s) << " s)\n";
   row("yaw-rate RMSE");
   os << fmt("%.3f", r.yaw_rate_rmse_deg_s) << " deg/s (" << r.yaw_rate_samples << " samples)\n";
   row("yaw-rate lag");

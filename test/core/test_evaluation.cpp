@@ -357,3 +357,50 @@ TEST(Evaluation, PureTiltErrorHasNoYawPartAndPureYawErrorNoTiltPart) {
   EXPECT_TRUE(j.contains("tilt_rpe_rmse_deg_s"));
   EXPECT_TRUE(j.contains("yaw_rate_lag_s"));
 }
+
+TEST(Evaluation, PlanarFloorIsTheErrorOfTheFlattenedTruth) {
+  // Truth drives straight along x at 1 m/s and pitches by theta(t) = a sin(2 pi t / T) about
+  // base_link's y: the flattened truth's error on each pair is a pitch by
+  // theta(t + Delta) - theta(t), and its translation (along x) leaves the truth's, seen from the
+  // pitched start frame, by |theta(t)|.
+  const double a = 0.02, period = 2.5;
+  const Trajectory3 planar = planarTrajectory(
+      20.0, [](double) { return 0.0; }, [](double) { return 1.0; });
+  Trajectory3 gt = planar;
+  auto theta = [&](double t) { return a * std::sin(2 * kPi * t / period); };
+  for (StampedPose& p : gt)
+    p.T =
+        p.T * makePose(Eigen::AngleAxisd(theta(nsToSec(p.t_ns)), Vec3::UnitY()).toRotationMatrix(),
+                       Vec3::Zero());
+  const Trajectory3 flat = planarProjection(gt);
+  ASSERT_EQ(flat.size(), gt.size());
+  for (size_t i = 0; i < gt.size(); i += 97)
+    EXPECT_TRUE(flat[i].T.isApprox(planar[i].T, 1e-12)) << i;
+
+  EvaluationOptions o;
+  const EvaluationResult r = evaluate(gt, planar, o);
+  double se_rot = 0, se_dir = 0;
+  int n = 0;
+  for (const RpePair& p : r.rpe.series) {
+    const double t = nsToSec(p.t_ns);
+    se_rot += std::pow((theta(t + o.delta_s) - theta(t)) * kDegPerRad / o.delta_s, 2);
+    se_dir += std::pow(theta(t) * kDegPerRad / o.delta_s, 2);
+    ++n;
+  }
+  ASSERT_GT(n, 300);
+  EXPECT_NEAR(r.planar_floor_rot_rmse_deg_s, std::sqrt(se_rot / n), 1e-6);
+  EXPECT_NEAR(r.planar_floor_tilt_rmse_deg_s, std::sqrt(se_rot / n), 1e-6);
+  EXPECT_NEAR(r.planar_floor_trans_dir_rmse_deg_s, std::sqrt(se_dir / n), 1e-6);
+  EXPECT_GT(r.planar_floor_trans_dir_rmse_deg_s, 0.5);
+  // The flattened truth as the estimate scores exactly the floor.
+  EXPECT_NEAR(r.rpe.rot_rmse_deg_s, r.planar_floor_rot_rmse_deg_s, 1e-9);
+  EXPECT_NEAR(r.rpe.trans_dir_rmse_deg_s, r.planar_floor_trans_dir_rmse_deg_s, 1e-9);
+  const nlohmann::json j = toJson(r);
+  EXPECT_NEAR(j["planar_floor"]["trans_dir_rmse_deg_s"].get<double>(),
+              r.planar_floor_trans_dir_rmse_deg_s, 1e-12);
+
+  // A planar truth has no floor.
+  const EvaluationResult r0 = evaluate(planar, gt, o);
+  EXPECT_LT(r0.planar_floor_rot_rmse_deg_s, 1e-9);
+  EXPECT_LT(r0.planar_floor_trans_dir_rmse_deg_s, 1e-9);
+}

@@ -100,6 +100,12 @@ struct EvaluationResult {
   double tracked_fraction = 0;  // estimate-covered time (gaps > max_gap_s excluded) / gt duration
   int64_t gt_start_ns = 0, gt_end_ns = 0, est_start_ns = 0, est_end_ns = 0;
   ScaleDrift scale_drift;
+  // The RPE at options.delta_s of the truth's own planar projection (x, y and yaw of each
+  // ground-truth pose, z = 0, no roll or pitch) on the same pairs: what any planar estimate
+  // scores at best. Zero for a planar truth; on a body that pitches and rolls it is the part of
+  // the rotation and translation-direction errors that only a 3D estimate can remove.
+  double planar_floor_rot_rmse_deg_s = 0, planar_floor_tilt_rmse_deg_s = 0,
+         planar_floor_trans_dir_rmse_deg_s = 0;
 };
 
 /// Relative pose error over delta_s with the pair sampling, standstill and gap rules of options.
@@ -111,6 +117,10 @@ RpeResult computeRpe(const Trajectory3& gt, const Trajectory3& est, double delta
 /// The yaw-rate lag alone (see EvaluationResult::yaw_rate_lag_s); *samples gets the count.
 double yawRateLag(const Trajectory3& gt, const Trajectory3& est, const EvaluationOptions& options,
                   int* samples = nullptr);
+
+/// Each pose of `trajectory` projected onto the ground plane: x, y and yaw kept, z, roll and
+/// pitch zero.
+Trajectory3 planarProjection(const Trajectory3& trajectory);
 
 /// Every metric above. Throws like computeRpe (at options.delta_s).
 EvaluationResult evaluate(const Trajectory3& gt, const Trajectory3& est,
