@@ -112,6 +112,8 @@ void FrontendOptions::validate(const std::string& section) const {
   if (!(refine_tolerance_rad_s > 0 && refine_tolerance_rad_s < scan_step_rad_s))
     fail("refine_tolerance_rad_s must be in (0, scan_step_rad_s)");
   if (!(standstill_event_rate_hz >= 0)) fail("standstill_event_rate_hz must be >= 0");
+  if (!(parallax_mask_slope >= 0 && parallax_mask_slope <= 10))
+    fail("parallax_mask_slope must be in [0, 10] (0: off)");
   if (!(standstill_speed_mps >= 0)) fail("standstill_speed_mps must be >= 0");
   if (!(min_confidence >= 0 && min_confidence < 1)) fail("min_confidence must be in [0, 1)");
   if (!(slow_rate_fraction >= 0 && slow_rate_fraction < 1))
@@ -133,8 +135,10 @@ Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera,
       objective_(camera_, &volume_),
       scan_objectives_(camera_, options_.volume),
       one_sided_(options_.one_sided, camera_, T_base_cam_) {
-  if (options_.ground_mask)
-    ground_mask_ = GroundMask(camera_, T_base_cam_, options_.volume.z_min_m);
+  if (options_.ground_mask || options_.parallax_mask_slope > 0)
+    ground_mask_ =
+        GroundMask(camera_, T_base_cam_, options_.ground_mask ? options_.volume.z_min_m : 0.0,
+                   options_.parallax_mask_slope);
   if (one_sided_.enabled()) {
     const VolumeOptions deeper = one_sided_.deeperPlanes(options_.volume);
     const CameraCalibration& c = camera.calibration();
@@ -146,7 +150,7 @@ Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera,
 }
 
 const EventVector& Frontend::offGround(const EventVector& events, EventVector* storage) const {
-  if (!options_.ground_mask) return events;
+  if (ground_mask_.maskedPixels() == 0) return events;
   *storage = ground_mask_.filter(events);
   return storage->size() >= options_.min_events ? *storage : events;
 }

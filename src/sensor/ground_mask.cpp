@@ -1,20 +1,30 @@
 #include "vwe_vo/sensor/ground_mask.h"
 
+#include <cmath>
+
 namespace vwe_vo {
 
-GroundMask::GroundMask(const CameraModel& camera, const Pose3& T_base_cam, double min_depth_m) {
+GroundMask::GroundMask(const CameraModel& camera, const Pose3& T_base_cam, double min_depth_m,
+                       double min_parallax_slope) {
   const double height = T_base_cam.translation().z();
-  if (!(height > 0) || !(min_depth_m > 0)) return;
+  const bool ground = height > 0 && min_depth_m > 0;
+  if (!ground && !(min_parallax_slope > 0)) return;
   width_ = size_t(camera.width());
   masked_.assign(width_ * size_t(camera.height()), 0);
   const Eigen::Matrix3d R = T_base_cam.linear();
   for (int y = 0; y < camera.height(); ++y)
     for (int x = 0; x < camera.width(); ++x) {
       const Vec3 d = camera.bearing(x, y).cast<double>();
-      const double down = (R * d).z();  // metres of height lost per unit of ray length
-      if (!(down < 0) || !(d.z() > 0)) continue;
-      const double depth = height / -down * d.z();  // along the optical axis, where it lands
-      if (depth < min_depth_m) {
+      const Vec3 b = R * d;  // in base_link: x forward (the direction of travel), z up
+      bool mask = false;
+      if (ground && b.z() < 0 && d.z() > 0) {
+        const double depth = height / -b.z() * d.z();  // along the optical axis, where it lands
+        mask = depth < min_depth_m;
+      }
+      if (min_parallax_slope > 0 && b.x() > 0 &&
+          std::abs(b.z()) < min_parallax_slope * std::abs(b.y()))
+        mask = true;
+      if (mask) {
         masked_[size_t(y) * width_ + size_t(x)] = 1;
         ++num_masked_;
       }

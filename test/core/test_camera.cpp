@@ -153,3 +153,36 @@ TEST(GroundMask, FollowsTheMountAndKeepsEverythingWithoutAGroundBelow) {
   ASSERT_EQ(kept.size(), 1u);
   EXPECT_EQ(kept[0].t_ns, 1);
 }
+
+TEST(GroundMask, MasksTheLowParallaxWedgeAroundTheDirectionOfTravel) {
+  // A level pinhole camera looking along base_link's x: a pixel's vertical and horizontal tangents
+  // relative to the direction of travel are (y - cy) / fy and (x - cx) / fx, so with fx = fy the
+  // wedge |phi| < k |theta| is |y - cy| < k |x - cx| in pixels.
+  const CameraModel cam(test::syntheticCalibration(false));
+  const double k = 0.5;
+  const GroundMask wedge(cam, mountToTBaseCam(Vec3(1.5, 0.0, 1.4), 0, 0, 0), 0.0, k);
+  size_t expected = 0;
+  for (int y = 0; y < cam.height(); ++y)
+    for (int x = 0; x < cam.width(); ++x) {
+      const double dy = std::abs(y - 130.0), dx = std::abs(x - 173.0);
+      const bool inside = dy < k * dx;
+      expected += inside ? 1 : 0;
+      if (std::abs(dy - k * dx) > 0.01)
+        ASSERT_EQ(wedge.keeps({0, uint16_t(x), uint16_t(y), 1}), !inside) << x << " " << y;
+    }
+  EXPECT_NEAR(double(wedge.maskedPixels()), double(expected), 200.0);
+  // Pitched 5 deg down, the wedge's apex (the focus of expansion) rises by fy tan(5 deg) = 21.9
+  // rows: the pixel beside the centre on that row is masked, the image centre is kept.
+  const GroundMask down(cam, mountToTBaseCam(Vec3(1.5, 0.0, 1.4), 0, 5.0 * kRadPerDeg, 0), 0.0, k);
+  EXPECT_FALSE(down.keeps({0, 273, 108, 1}));
+  EXPECT_TRUE(down.keeps({0, 273, 160, 1}));
+  EXPECT_TRUE(down.keeps({0, 173, 130, 1}));
+  // Both criteria at once: the union of the near ground and the wedge.
+  const Pose3 mount = mountToTBaseCam(Vec3(1.5, 0.0, 1.4), 0, 0, 0);
+  const size_t ground = GroundMask(cam, mount, 4.5).maskedPixels();
+  const GroundMask both(cam, mount, 4.5, k);
+  EXPECT_GT(both.maskedPixels(), ground);
+  EXPECT_LT(both.maskedPixels(), ground + wedge.maskedPixels());
+  EXPECT_FALSE(both.keeps({0, 173, 255, 1}));  // near ground straight ahead
+  EXPECT_FALSE(both.keeps({0, 20, 131, 1}));   // the wedge, far left
+}

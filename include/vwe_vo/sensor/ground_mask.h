@@ -20,8 +20,13 @@ class GroundMask {
   /// Keeps every pixel.
   GroundMask() = default;
   /// Masks the pixels whose ray meets the ground, the plane z = 0 of base_link, at a depth along
-  /// the camera's optical axis below min_depth_m. A camera at or below the ground masks nothing.
-  GroundMask(const CameraModel& camera, const Pose3& T_base_cam, double min_depth_m);
+  /// the camera's optical axis below min_depth_m (0: none). A camera at or below the ground masks
+  /// none of these. With min_parallax_slope k > 0 it also masks the pixels whose bearing b in
+  /// base_link (x the direction of travel, z up) points forward with |b_z| < k |b_y|: the wedge
+  /// around the horizon row beside the focus of expansion, where a yaw-rate error is absorbed
+  /// by depth (FrontendOptions::parallax_mask_slope).
+  GroundMask(const CameraModel& camera, const Pose3& T_base_cam, double min_depth_m,
+             double min_parallax_slope = 0.0);
   bool keeps(const PixelEvent& e) const {
     return masked_.empty() || !masked_[size_t(e.y) * width_ + e.x];
   }
