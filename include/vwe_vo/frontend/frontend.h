@@ -133,6 +133,7 @@ struct FrontendStats {
   size_t windows_thinned = 0;  // estimated on 1/k of max_events_per_volume (setVolumeThinning)
   size_t evaluations = 0;
   size_t events_ground_masked = 0;      // of the estimated windows, left out by ground_mask
+                                        // and parallax_mask_slope
   size_t windows_slow = 0;              // without odometry: nominal speed scaled by the event rate
   size_t windows_standstill_edges = 0;  // standstill (or mostly still) windows split where /odom
                                         // stops or starts

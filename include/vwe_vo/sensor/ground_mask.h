@@ -3,6 +3,8 @@
 // any plane of the volume; their rays are spread over the nearest planes at every yaw rate and
 // pull the contrast's peak towards the rates that smear them least (street_drive, a car's camera
 // 1.4 m up: the 0.3 s windows' peaks 2.4 deg/s RMS from the true yaw rate with them, 1.1 without).
+// Optionally also the pixels of the low-parallax wedge beside the horizon row, whose events cannot
+// pin the yaw rate either (FrontendOptions::parallax_mask_slope): one mask, one pass per window.
 #pragma once
 
 #include <cstddef>
