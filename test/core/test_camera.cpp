@@ -167,8 +167,9 @@ TEST(GroundMask, MasksTheLowParallaxWedgeAroundTheDirectionOfTravel) {
       const double dy = std::abs(y - 130.0), dx = std::abs(x - 173.0);
       const bool inside = dy < k * dx;
       expected += inside ? 1 : 0;
-      if (std::abs(dy - k * dx) > 0.01)
+      if (std::abs(dy - k * dx) > 0.01) {
         ASSERT_EQ(wedge.keeps({0, uint16_t(x), uint16_t(y), 1}), !inside) << x << " " << y;
+      }
     }
   EXPECT_NEAR(double(wedge.maskedPixels()), double(expected), 200.0);
   // Pitched 5 deg down, the wedge's apex (the focus of expansion) rises by fy tan(5 deg) = 21.9
