@@ -170,6 +170,13 @@ Scene buildSequenceScene(const SequenceSpec& spec, const VehicleTrajectory& traj
   return buildScene(spec.scene, spec.seed, layout, &trajectory);
 }
 
+void SequenceSpec::reseed(uint64_t new_seed) {
+  seed = new_seed;
+  simulator.seed = new_seed;
+  imu.seed = new_seed;
+  trajectory.suspension.seed = new_seed;
+}
+
 double SequenceSpec::durationSec() const {
   double d = 0;
   for (const auto& s : profile) d += s.duration_s;

@@ -158,10 +158,7 @@ int run(const Args& args) {
     return 0;
   }
   sim::SequenceSpec spec = sim::findSequence(args.sequence);
-  if (args.seed_set) {
-    spec.seed = args.seed;
-    spec.simulator.seed = args.seed;
-  }
+  if (args.seed_set) spec.reseed(args.seed);
   // Calibration and mount: --calib, else the config's camera_calibration, else
   // config/davis346.yaml.
   std::string calib_path = args.calib;

@@ -58,6 +58,10 @@ struct SequenceSpec {
   bool davis_imu = false;
   ImuOptions imu;
   double durationSec() const;
+  /// Another realisation of the same sequence: the scene, the event noise and thresholds, the
+  /// suspension's road and the IMU's noise and bias all follow `seed` (vwe_vo_sim --seed); the
+  /// planned motion stays.
+  void reseed(uint64_t seed);
 };
 
 /// The sequence's scene: along layout_profile when it has one (keeping clear of the vehicle's
