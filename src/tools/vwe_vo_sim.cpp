@@ -71,7 +71,10 @@ void usage(std::ostream& os) {
         "images/frame_00000000.png`).\n"
         "--depth-times: DIR/depth/depth_<t>.png, 16-bit depth z in the camera frame in "
         "millimetres\n"
-        "(0 = nothing hit), listed in DIR/depth/depth_times.txt.\n";
+        "(0 = nothing hit), listed in DIR/depth/depth_times.txt.\n"
+        "--seed N: another realisation of the sequence (scene, event noise and thresholds, the "
+        "road under the\n"
+        "suspension, the IMU's noise and bias); the planned motion stays.\n";
 }
 
 double parseDouble(const std::string& flag, const std::string& v) {

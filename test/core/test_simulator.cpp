@@ -535,8 +535,8 @@ TEST(SimulatorSequences, ReseedingChangesTheRoadAndTheImuButNotThePlannedMotion)
   EXPECT_EQ(b.trajectory.suspension.seed, 7u);
   const auto ta = VehicleTrajectory::fromProfile(a.profile, a.trajectory);
   const auto tb = VehicleTrajectory::fromProfile(b.profile, b.trajectory);
-  // The same planned path (yaw within the suspension's own small effect), another road: the
-  // pitch differs by more than 0.1 deg somewhere in 40 s.
+  // The same planned path (x, y within 5 cm), another road: the pitch differs by more than
+  // 0.1 deg somewhere in 40 s.
   double max_pitch_diff = 0, max_xy_diff = 0;
   for (int64_t t = 0; t <= ta.durationNs(); t += 10000000) {
     const Pose3 pa = ta.T_odom_base(t), pb = tb.T_odom_base(t);
