@@ -9,13 +9,22 @@ is recorded next to them. With --seeds 1,2,3 each sequence is also run with thos
 seeds (front-end and back-end) and the spread of the accuracy is reported: one seed can move a
 rotation RMSE by a factor of several when a single window goes wrong.
 
+With --starts 0.5,1.1,2.3 each sequence is also run from those later start times (`--start`), and
+the back-end's yaw RPE and translation-direction RMSE are reported per start and as their mean
+over all starts (0 included): one run of a street with continuous steering moves by 0.1-0.2 deg/s
+from one start to the next, more than most changes under test. --without-odom adds the same runs
+without /odom (nominal speed), --flat-twins runs each sequence's `_flat` twin (the same drive
+without suspension) at the same starts and reports the suspension's cost as the ratio of the
+means (the target is at most 1.2). These runs are timed once.
+
 The real-time factor of front-end + back-end is the event pipeline's wall time (the back-end on
 its own thread beside the front-end, as the nodes run live, bag decoding included) over the data's
 duration; each stage's busy time is reported as well. Machines shared with others vary by 10-30 %
 from run to run, so each sequence is timed --repeat times (default 3) and the minimum and median
 are reported (the outputs of the repeats are identical).
 
-    scripts/bench_pipeline.py --ws .build/ws --out out/bench [--repeat N] [--seeds 1,2,3] [SEQUENCE ...]
+    scripts/bench_pipeline.py --ws .build/ws --out out/bench [--repeat N] [--seeds 1,2,3]
+                              [--starts 0.5,1.1,2.3 [--without-odom] [--flat-twins]] [SEQUENCE ...]
     (default sequences: indoor_long street_long)
 """
 import statistics
@@ -61,13 +70,14 @@ def seeded_config(config, seed):
     return f.name
 
 
-def run(bin_dir, seq, config, run_dir, repeat=1, extra_args=()):
+def run(bin_dir, seq, config, run_dir, repeat=1, extra_args=(), use_odom=True):
     seq_dir = os.path.join(ROOT, "out", "sequences", seq)
     os.makedirs(run_dir, exist_ok=True)
     reports = []
     for _ in range(max(1, repeat)):
         subprocess.run([os.path.join(bin_dir, "vwe_vo_offline"), "--bag", os.path.join(seq_dir, seq + ".bag"),
-                        "--config", config, "--use-odom", "--no-map", "--quiet", "--out", run_dir] + list(extra_args),
+                        "--config", config, "--no-map", "--quiet", "--out", run_dir]
+                       + (["--use-odom"] if use_odom else []) + list(extra_args),
                        check=True, stdout=subprocess.DEVNULL)
         reports.append(json.load(open(os.path.join(run_dir, "report.json"))))
     rep = min(reports, key=lambda r: r["event_pipeline"]["real_time_factor"])
@@ -94,6 +104,23 @@ def run(bin_dir, seq, config, run_dir, repeat=1, extra_args=()):
             "odom": evaluate(ev, gt, os.path.join(run_dir, "odom.tum"))}
 
 
+def over_starts(bin_dir, seq, starts, out_dir, use_odom, first=None):
+    """The back-end's yaw RPE and translation-direction RMSE [deg/s] from each start time [s] and
+    their means. `first`: an existing result of the run from 0 with the same /odom setting."""
+    by_start = {}
+    for start in starts:
+        if start == 0 and first is not None:
+            r = first
+        else:
+            run_dir = os.path.join(out_dir, "%s_%s_from%g" % (seq, "odom" if use_odom else "noodom", start))
+            r = run(bin_dir, seq, config_for(seq), run_dir, 1, ["--start", str(start)] if start else [], use_odom)
+        by_start["%g" % start] = {"yaw_rpe_rmse_deg_s": round(r["backend"]["yaw_rpe_rmse_deg_s"], 4),
+                                  "trans_dir_rmse_deg_s": round(r["backend"]["trans_dir_rmse_deg_s"], 4)}
+    mean = {k: round(statistics.mean(v[k] for v in by_start.values()), 4)
+            for k in ("yaw_rpe_rmse_deg_s", "trans_dir_rmse_deg_s")}
+    return {"by_start": by_start, "mean": mean}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ws", default=os.path.join(ROOT, ".build", "ws"))
@@ -103,10 +130,19 @@ def main():
     ap.add_argument("--json", default="bench_pipeline.json", help="name of the JSON file in --out")
     ap.add_argument("--imu", action="store_true",
                     help="also run each sequence with --use-imu (its /dvs/imu), as with_imu")
+    ap.add_argument("--starts", default="",
+                    help="comma-separated later start times [s] to run as well (back-end accuracy per start)")
+    ap.add_argument("--without-odom", action="store_true", help="with --starts: also without /odom")
+    ap.add_argument("--flat-twins", action="store_true",
+                    help="with --starts: also each sequence's _flat twin, and the suspension's cost")
     ap.add_argument("sequences", nargs="*", default=["indoor_long", "street_long"])
     a = ap.parse_args()
+    if (a.without_odom or a.flat_twins) and not a.starts:
+        ap.error("--without-odom and --flat-twins go with --starts")
     bin_dir = os.path.join(a.ws, "devel", "lib", "vwe_vo")
-    subprocess.run(["bash", os.path.join(ROOT, "scripts", "make_sequences.sh")] + a.sequences, check=True,
+    starts = [0.0] + [float(x) for x in a.starts.split(",")] if a.starts else []
+    twins = [seq + "_flat" for seq in a.sequences] if a.flat_twins else []
+    subprocess.run(["bash", os.path.join(ROOT, "scripts", "make_sequences.sh")] + a.sequences + twins, check=True,
                    stdout=subprocess.DEVNULL)
     result = {"machine": {"cpus": os.cpu_count(), "processor": platform.processor() or platform.machine(),
                           "load_average_at_start": [round(x, 2) for x in os.getloadavg()]},
@@ -143,6 +179,27 @@ def main():
                 print("[bench] pipeline %-12s seed %d: rotation RMSE front %.3f back %.3f deg/s"
                       % (seq, seed, by_seed[seed]["frontend"], by_seed[seed]["backend"]), flush=True)
             r["rot_rmse_deg_s_by_seed"] = by_seed
+        if starts:
+            pipeline_dir = os.path.join(a.out, "pipeline")
+            modes = [True, False] if a.without_odom else [True]
+            r["starts"] = {}
+            for use_odom in modes:
+                key = "with_odom" if use_odom else "without_odom"
+                res = {seq: over_starts(bin_dir, seq, starts, pipeline_dir, use_odom, r if use_odom else None)}
+                if a.flat_twins:
+                    twin = seq + "_flat"
+                    res[twin] = over_starts(bin_dir, twin, starts, pipeline_dir, use_odom)
+                    res["suspension_ratio_yaw"] = round(res[seq]["mean"]["yaw_rpe_rmse_deg_s"] /
+                                                        res[twin]["mean"]["yaw_rpe_rmse_deg_s"], 3)
+                r["starts"][key] = res
+                print("[bench] pipeline %-12s %s, back-end over starts %s s: mean yaw RPE %.3f, translation "
+                      "direction %.3f deg/s%s"
+                      % (seq, key.replace("_", " "), ", ".join("%g" % x for x in starts),
+                         res[seq]["mean"]["yaw_rpe_rmse_deg_s"], res[seq]["mean"]["trans_dir_rmse_deg_s"],
+                         "; flat twin %.3f / %.3f, suspension ratio %.2f"
+                         % (res[seq + "_flat"]["mean"]["yaw_rpe_rmse_deg_s"],
+                            res[seq + "_flat"]["mean"]["trans_dir_rmse_deg_s"], res["suspension_ratio_yaw"])
+                         if a.flat_twins else ""), flush=True)
     path = os.path.join(a.out, a.json)
     with open(path, "w") as f:
         json.dump(result, f, indent=1)

@@ -21,9 +21,10 @@ done
 # The whole front-end + back-end on the simulated sequences (real-time factor and accuracy).
 if [ "$filter" = "." ] || [[ "pipeline" =~ $filter ]]; then
   /usr/bin/python3 "$(dirname "$0")/bench_pipeline.py" --ws "$ws" --out "$out"
-  # Continuous driving with suspension, with and without the IMU (bench_pipeline_drive.json).
+  # Continuous driving with suspension, with and without the IMU; from four start times with and
+  # without /odom, beside the flat twins (bench_pipeline_drive.json).
   /usr/bin/python3 "$(dirname "$0")/bench_pipeline.py" --ws "$ws" --out "$out" --repeat 1 --imu \
-    --json bench_pipeline_drive.json indoor_drive street_drive
+    --starts 0.5,1.1,2.3 --without-odom --flat-twins --json bench_pipeline_drive.json indoor_drive street_drive
 fi
 # The whole system live: replay_check at rate 1 and 2 (CPU per node, drops, /vwe/odom accuracy).
 if [ "$filter" = "." ] || [[ "live" =~ $filter ]]; then
