@@ -163,6 +163,7 @@ void Frontend::reset() {
   last_omega_ = 0.0;
   last_curvature_ = 0.0;
   lost_ = true;
+  after_standstill_ = false;
   moving_rate_hz_ = 0.0;
   speed_factors_.clear();
   chain_.reset();
@@ -512,6 +513,18 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
       stats_.windows_one_sided_near += !setup.deep_planes;
     }
     arc = estimateWindow(sub, t_ref, v, center, half, setup);
+    if (!measured && after_standstill_ && options_.restart_speed_scan) {
+      bool slower = false;
+      for (const double f : {1.0 / 16.0, 1.0 / 4.0}) {
+        ArcEstimate a = estimateWindow(sub, t_ref, v * f, center, half, setup);
+        a.evaluations += arc.evaluations;
+        if (a.status == ArcStatus::kOk && a.contrast > arc.contrast)
+          arc = a, arc.v = v, slower = true;
+        else
+          arc.evaluations = a.evaluations;
+      }
+      stats_.windows_restart_slower += slower;
+    }
     *scanned = true;
   }
   arc.t_ref_ns = t_ref;
@@ -581,6 +594,7 @@ std::vector<ArcEstimate> Frontend::process(size_t max_windows) {
         last_curvature_ = p.omega / p.v;
     const ArcEstimate& last = parts.back();
     lost_ = last.status == ArcStatus::kLost;
+    after_standstill_ = last.status == ArcStatus::kStandstill;
     last_omega_ = last.status == ArcStatus::kOk
                       ? last.omega
                       : (arc.status == ArcStatus::kOk ? arc.omega : previous_omega);

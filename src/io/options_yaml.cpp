@@ -142,6 +142,7 @@ void fields(Archive& a, FrontendOptions* o) {
   a("one_sided_min_depth_m", &o->one_sided.min_depth_m);
   a("split_omega_change_rad_s", &o->split_omega_change_rad_s);
   a("slow_rate_fraction", &o->slow_rate_fraction);
+  a("restart_speed_scan", &o->restart_speed_scan);
   a("use_gyro_prior", &o->use_gyro_prior);
   a("gyro_prior_half_range_rad_s", &o->gyro_prior_half_range_rad_s);
   a("ground_mask", &o->ground_mask);

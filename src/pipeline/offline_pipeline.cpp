@@ -372,6 +372,7 @@ nlohmann::json OfflinePipeline::report() const {
                              {"windows_dropped", st.windows_dropped},
                              {"windows_split", st.windows_split},
                              {"windows_standstill_edges", st.windows_standstill_edges},
+                             {"windows_restart_slower", st.windows_restart_slower},
                              {"windows_one_sided", st.windows_one_sided},
                              {"windows_one_sided_near", st.windows_one_sided_near},
                              {"objective_evaluations", st.evaluations},

@@ -272,6 +272,51 @@ TEST(Frontend, StandstillWindowsKeepTheirMovingEdgesAtTheCurvatureBeforeTheStop)
   EXPECT_EQ(edges, 2u);
 }
 
+// Without odometry, a turtlebot turning away from a stop at 2.5 cm/s: at the nominal 0.4 m/s the
+// first window's parallax is 16 times too large and pulls the yaw rate; restart_speed_scan also
+// tries 1/16 and 1/4 of the speed there and keeps the arc of highest contrast (at the nominal
+// speed, which the back-end's start ramps rescale), and only there.
+TEST(Frontend, WithoutOdometryTheFirstWindowAfterAStopAlsoTriesSlowerSpeeds) {
+  const double w_deg = 10.0;
+  const AckermannArcModel still(0.0, 0.0, secToNs(4.55), defaultTBaseCam());
+  const AckermannArcModel start(w_deg / kDegPerRad, 0.025, secToNs(5.15), defaultTBaseCam());
+  // A wall on the left, 1 m beside the camera from 1.5 to 6 m ahead: the structure along which a
+  // yaw rate trades for parallax. [4.25, 4.85): 1000 events/s, a standstill; [4.85, 5.45): the
+  // slow turn.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<Vec3> wall;
+  for (int i = 0; i < 600; ++i) wall.emplace_back(-1.0, 0.6 * u(rng) - 0.3, 1.5 + 4.5 * u(rng));
+  EventVector events = synthetic::pointEvents(camera(), still, wall, 600, &rng, 0.3);
+  const EventVector moving = synthetic::pointEvents(camera(), start, wall, 40000, &rng, 0.3);
+  events.insert(events.end(), moving.begin(), moving.end());
+  double error[2] = {0, 0};
+  for (const bool scan : {false, true}) {
+    FrontendOptions o = options();
+    o.restart_speed_scan = scan;
+    Frontend fe(o, camera(), defaultTBaseCam());
+    fe.addEvents(events);
+    const std::vector<ArcEstimate> arcs = fe.process();
+    const ArcEstimate* first = nullptr;
+    size_t standstills = 0;
+    for (const ArcEstimate& a : arcs) {
+      standstills += a.status == ArcStatus::kStandstill;
+      if (!first && a.status == ArcStatus::kOk) first = &a;
+    }
+    EXPECT_EQ(standstills, 2u);
+    ASSERT_NE(first, nullptr);
+    EXPECT_NEAR(nsToSec(first->t_start_ns), 4.85, 0.01);
+    EXPECT_DOUBLE_EQ(first->v, 0.4);
+    error[scan] = std::abs(first->omega * kDegPerRad - w_deg);
+    // The window and, as its yaw rate left the standstill's, its two halves (split_omega_change).
+    EXPECT_EQ(fe.stats().windows_restart_slower, scan ? 3u : 0u);
+    std::printf("restart_speed_scan %d: first window's yaw rate off by %.2f deg/s\n", int(scan),
+                error[scan]);
+  }
+  EXPECT_LT(error[1], 1.0);
+  EXPECT_GT(error[0], 2.0 * error[1] + 0.5);
+}
+
 // A window /odom says is still for most of its time but whose mean speed is above the standstill
 // speed (a start): its events barely moved, so it is held and its moving end keeps the curvature
 // from before the stop; a window still for less than half its time keeps its events' estimate.

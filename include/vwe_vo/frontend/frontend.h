@@ -70,6 +70,11 @@ struct FrontendOptions {
   // the back-end's braking ramps (BackendOptions::stop_ramp_max_s) follow the rate only into a
   // stop (0: off).
   double slow_rate_fraction = 0.0;
+  // Without odometry, the first window after a standstill is also estimated at 1/16 and 1/4 of
+  // the nominal speed, and the arc of highest contrast is kept: starting from rest the vehicle
+  // covers a fraction of the nominal distance in that window (indoor_drive turns away at
+  // 1-2 cm/s), and the nominal speed's parallax puts degrees per second into the yaw rate.
+  bool restart_speed_scan = true;
   bool use_gyro_prior = false;               // centre and narrow the scan on the gyro yaw rate
   double gyro_prior_half_range_rad_s = 0.1;  // scan half range around the gyro yaw rate [rad/s]
   double max_backwards_jump_s =
@@ -137,6 +142,7 @@ struct FrontendStats {
   size_t windows_slow = 0;              // without odometry: nominal speed scaled by the event rate
   size_t windows_standstill_edges = 0;  // standstill (or mostly still) windows split where /odom
                                         // stops or starts
+  size_t windows_restart_slower = 0;    // restart_speed_scan kept a slower arc (a window or half)
   size_t windows_one_sided = 0;         // estimated with the deeper planes (one_sided.z_min_m)
   size_t windows_one_sided_near =
       0;  // one-sided, but the structure nearer than one_sided.min_depth_m
@@ -260,7 +266,8 @@ class Frontend {
   // vehicle keeps through a stop (the moving edges of a standstill window, standstillEdges()).
   double last_curvature_ = 0.0;
   bool lost_ = true;
-  double moving_rate_hz_ = 0.0;  // slow_rate_fraction: the moving windows' event rate
+  bool after_standstill_ = false;  // the last window ended in a standstill (restart_speed_scan)
+  double moving_rate_hz_ = 0.0;    // slow_rate_fraction: the moving windows' event rate
   struct SpeedFactor {
     int64_t t0_ns, t1_ns;
     double factor;
