@@ -275,7 +275,7 @@ TEST(Frontend, StandstillWindowsKeepTheirMovingEdgesAtTheCurvatureBeforeTheStop)
 // Without odometry, a turtlebot turning away from a stop at 2.5 cm/s: at the nominal 0.4 m/s the
 // first window's parallax is 16 times too large and pulls the yaw rate; restart_speed_scan also
 // tries 1/16 and 1/4 of the speed there and keeps the arc of highest contrast (at the nominal
-// speed, which the back-end's start ramps rescale), and only there.
+// speed, which the back-end's start ramps rescale).
 TEST(Frontend, WithoutOdometryTheFirstWindowAfterAStopAlsoTriesSlowerSpeeds) {
   const double w_deg = 10.0;
   const AckermannArcModel still(0.0, 0.0, secToNs(4.55), defaultTBaseCam());

@@ -73,7 +73,7 @@ struct FrontendOptions {
   // Without odometry, the first window after a standstill is also estimated at 1/16 and 1/4 of
   // the nominal speed, and the arc of highest contrast is kept: starting from rest the vehicle
   // covers a fraction of the nominal distance in that window (indoor_drive turns away at
-  // 1-2 cm/s), and the nominal speed's parallax puts degrees per second into the yaw rate.
+  // 1-3 cm/s), and the nominal speed's parallax puts degrees per second into the yaw rate.
   bool restart_speed_scan = true;
   bool use_gyro_prior = false;               // centre and narrow the scan on the gyro yaw rate
   double gyro_prior_half_range_rad_s = 0.1;  // scan half range around the gyro yaw rate [rad/s]
