@@ -515,14 +515,14 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
     arc = estimateWindow(sub, t_ref, v, center, half, setup);
     if (!measured && after_standstill_ && options_.restart_speed_scan) {
       bool slower = false;
+      int evaluations = arc.evaluations;
       for (const double f : {1.0 / 16.0, 1.0 / 4.0}) {
-        ArcEstimate a = estimateWindow(sub, t_ref, v * f, center, half, setup);
-        a.evaluations += arc.evaluations;
+        const ArcEstimate a = estimateWindow(sub, t_ref, v * f, center, half, setup);
+        evaluations += a.evaluations;
         if (a.status == ArcStatus::kOk && a.contrast > arc.contrast)
           arc = a, arc.v = v, slower = true;
-        else
-          arc.evaluations = a.evaluations;
       }
+      arc.evaluations = evaluations;  // all three estimates'
       stats_.windows_restart_slower += slower;
     }
     *scanned = true;
