@@ -57,6 +57,8 @@ void BackendOptions::validate(const std::string& section) const {
     fail("arc_rate_prior_scale_deg_s must be in [0, 100] deg/s (0: quadratic)");
   if (!(outlier_arc_min_rad_s >= 0 && outlier_arc_min_rad_s <= 2))
     fail("outlier_arc_min_rad_s must be in [0, 2] rad/s (0: off)");
+  if (!(parallax_mask_slope >= 0 && parallax_mask_slope <= 10))
+    fail("parallax_mask_slope must be in [0, 10] (0: off)");
   if (!(stop_ramp_max_s >= 0 && stop_ramp_max_s <= 10))
     fail("stop_ramp_max_s must be in [0, 10] s (0: off)");
   if (!(nominal_min_tangent_speed_mps > 0 && nominal_min_tangent_speed_mps <= 10))
@@ -363,7 +365,10 @@ Backend::Backend(const BackendOptions& options, const CameraModel& camera, const
     : options_(options),
       camera_(camera),
       T_base_cam_(T_base_cam),
-      objectives_(camera_, validated(options).volume) {}
+      objectives_(camera_, validated(options).volume) {
+  if (options_.parallax_mask_slope > 0)
+    mask_ = GroundMask(camera_, T_base_cam_, 0.0, options_.parallax_mask_slope);
+}
 
 Backend::~Backend() = default;
 
@@ -393,6 +398,8 @@ void Backend::addEvents(const EventVector& events) {
   for (const PixelEvent& e : events) {
     if (!camera_.inside(e.x, e.y))
       ++stats_.events_outside;
+    else if (!mask_.keeps(e))
+      ++stats_.events_masked;
     else if (!buffer_.push(e))
       ++stats_.events_out_of_order;
   }

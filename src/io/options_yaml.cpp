@@ -176,6 +176,7 @@ void fields(Archive& a, BackendOptions* o) {
   a("yaw_scan_half_range_rad_s", &o->yaw_scan_half_range_rad_s);
   a("yaw_scan_step_rad_s", &o->yaw_scan_step_rad_s);
   a("outlier_arc_min_rad_s", &o->outlier_arc_min_rad_s);
+  a("parallax_mask_slope", &o->parallax_mask_slope);
   a("stop_ramp_max_s", &o->stop_ramp_max_s);
   a("start_ramps", &o->start_ramps);
   a("nominal_min_tangent_speed_mps", &o->nominal_min_tangent_speed_mps);

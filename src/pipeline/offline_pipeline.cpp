@@ -411,6 +411,7 @@ nlohmann::json OfflinePipeline::report() const {
         {"resets", b.resets},
         {"events_outside_sensor", b.events_outside},
         {"events_out_of_order", b.events_out_of_order},
+        {"events_parallax_masked", b.events_masked},
         {"control_points", backend_->hasSpline() ? backend_->spline().numControlPoints() : 0}};
     if (!arc_truth_.empty())
       j["stages"]["backend"]["arcs_from_truth"] = {{"blend", arc_truth_blend_},

@@ -712,6 +712,33 @@ TEST(Backend, UnmeasuredArcsAreDeadReckonedAtTheLastMeasuredRates) {
   EXPECT_TRUE(T.matrix().allFinite());
 }
 
+TEST(Backend, ParallaxWedgeEventsAreCountedAndLeftOutOfTheVolumes) {
+  // With parallax_mask_slope the events of the wedge beside the horizon row never reach the
+  // volumes: each is counted once, and exactly those GroundMask names are.
+  Scene sc;
+  BackendOptions o = testOptions();
+  o.parallax_mask_slope = 0.5;
+  const GroundMask wedge(sc.cam, testExtrinsics(), 0.0, o.parallax_mask_slope);
+  size_t in_wedge = 0;
+  for (const PixelEvent& e : sc.events) in_wedge += wedge.keeps(e) ? 0 : 1;
+  ASSERT_GT(in_wedge, sc.events.size() / 10);
+  ASSERT_LT(in_wedge, sc.events.size() / 2);
+  Backend backend(o, sc.cam, testExtrinsics());
+  backend.addEvents(sc.events);
+  for (const ArcEstimate& a : truthArcs(*sc.truth, 0.0)) {
+    backend.addArc(a);
+    backend.process();
+  }
+  backend.finish();
+  EXPECT_EQ(backend.stats().events_in, sc.events.size());
+  EXPECT_EQ(backend.stats().events_masked, in_wedge);
+  EXPECT_GT(backend.stats().volumes, 0u);
+  ASSERT_TRUE(backend.hasSpline());
+  Backend unmasked(testOptions(), sc.cam, testExtrinsics());
+  unmasked.addEvents(sc.events);
+  EXPECT_EQ(unmasked.stats().events_masked, 0u);
+}
+
 TEST(Backend, StandstillGivesFinitePosesAndSkipsVolumes) {
   Scene sc;
   std::vector<ArcEstimate> arcs = truthArcs(*sc.truth, 0.0);
@@ -834,6 +861,9 @@ TEST(Backend, OptionsValidateNamesTheField) {
   o = BackendOptions();
   o.outlier_arc_min_rad_s = std::nan("");
   expectField(o, "outlier_arc_min_rad_s");
+  o = BackendOptions();
+  o.parallax_mask_slope = -0.1;
+  expectField(o, "parallax_mask_slope");
   o = BackendOptions();
   o.volume.pose_slice_s = -0.001;
   expectField(o, "pose_slice_s");
@@ -998,13 +1028,16 @@ TEST(Backend, YamlLoaderFillsBackendOptionsAndNamesBadKeys) {
     std::ofstream(path) << "camera_calibration: " << calib << "\nbackend:\n" << backend;
   };
   write(
-      "  window_s: 3.0\n  tau1_s: 0.25\n  max_line_search_steps: 7\n  bogus_key: 1\n  volume:\n    "
+      "  window_s: 3.0\n  tau1_s: 0.25\n  max_line_search_steps: 7\n  parallax_mask_slope: 0.3\n  "
+      "bogus_key: "
+      "1\n  volume:\n    "
       "num_planes: 17\n");
   const PipelineConfig cfg = loadPipelineConfig(path);
   EXPECT_EQ(cfg.backend.window_s, 3.0);
   EXPECT_EQ(cfg.backend.max_line_search_steps, 7);
   EXPECT_EQ(cfg.backend.tau1_s, 0.25);
   EXPECT_EQ(cfg.backend.volume.num_planes, 17);
+  EXPECT_EQ(cfg.backend.parallax_mask_slope, 0.3);
   EXPECT_EQ(cfg.backend.tau2_s, BackendOptions().tau2_s);
   bool warned = false;
   for (const std::string& w : cfg.warnings)

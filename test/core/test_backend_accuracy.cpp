@@ -196,13 +196,13 @@ TEST(BackendAccuracy, StreetLongWithTheCarConfig) {
   // drift along 250 m.
   const PipelineRun r = run("street_long", "car.yaml");
   EXPECT_EQ(r.nonfinite_poses, 0u);
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, r.frontend.rpe.rot_rmse_deg_s);  // 0.653 vs 0.664
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.75);                           // measured 0.653
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.45);                     // measured 0.370
-  EXPECT_LE(r.backend.ate_percent_of_path, 0.6);                           // measured 0.47
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, r.frontend.rpe.rot_rmse_deg_s);  // 0.440 vs 0.551
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.6);                            // measured 0.440
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.35);                     // measured 0.234
+  EXPECT_LE(r.backend.ate_percent_of_path, 0.5);                           // measured 0.37
   ASSERT_GE(r.backend.scale_drift.ratios.size(), 20u);
   EXPECT_LE(r.backend.scale_drift.max_ratio / r.backend.scale_drift.min_ratio,
-            1.023);  // measured 1.015
+            1.03);  // measured 1.021 (1.015 with the back-end's volumes unmasked)
 }
 
 TEST(BackendAccuracy, StreetLongStartedLate) {
@@ -213,16 +213,17 @@ TEST(BackendAccuracy, StreetLongStartedLate) {
   const PipelineRun r = run("street_long", "car.yaml", 0.25);
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_LE(r.backend.rpe.rot_rmse_deg_s,
-            r.frontend.rpe.rot_rmse_deg_s);       // measured 0.603 vs 0.710
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.75);  // measured 0.603
-  EXPECT_LE(r.backend.ate_percent_of_path, 0.5);  // measured 0.38
+            r.frontend.rpe.rot_rmse_deg_s);       // measured 0.461 vs 0.560
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.65);  // measured 0.461
+  EXPECT_LE(r.backend.ate_percent_of_path, 0.5);  // measured 0.37
 }
 
 // A car weaving in the right lane of a street (5.6-9.4 m/s, lane changes, a bend; the flat twin:
 // yaw is all that is estimated). The facades are asymmetric: with front-end planes that ended
 // at 60 m, each side's distant facade pulled the yaw towards itself and the busier side won
-// (front-end 0.76 x true + 0.6 deg/s on the bag). Measured: front-end 0.773, back-end 0.685
-// deg/s, translation direction 0.372 deg/s; before car.yaml's ground mask, with its yaw-rate
+// (front-end 0.76 x true + 0.6 deg/s on the bag). Measured: front-end 0.634, back-end 0.474
+// deg/s, translation direction 0.266 deg/s (with the back-end's volumes unmasked: back-end 0.685,
+// 0.372); before car.yaml's ground mask, with its yaw-rate
 // scan: 1.490, 1.073, 0.589 (with each vote's own weights in the density, whose spike at zero
 // yaw rate held 26 of 171 windows at zero on the bag: 1.480, 1.353, 0.730; planes ending at 60 m
 // as well: 1.917, 1.766, 0.940).
@@ -231,8 +232,8 @@ TEST(BackendAccuracy, StreetDriveWeavingInTheRightLane) {
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_GE(r.backend.tracked_fraction, 0.95);
   EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, r.frontend.rpe.yaw_rmse_deg_s);
-  EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 0.9);        // measured 0.685
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.5);  // measured 0.372
+  EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 0.7);        // measured 0.474
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.4);  // measured 0.266
 }
 
 // The car on its suspension (pitch/roll 1-2 deg, bumps, braking dives) with the DAVIS's IMU: the
@@ -240,7 +241,7 @@ TEST(BackendAccuracy, StreetDriveWeavingInTheRightLane) {
 // difference of the odometry's speed; the yaw-rate bias is estimated against the events' yaw.
 // The first fit turns at the gyro's rate less the bias estimate; the bias is measured per window
 // against the yaw-rate offset the volumes prefer (Huber-weighted). Measured: 3D rotation RMSE
-// 0.237, tilt 0.129, translation direction 0.172 deg/s, yaw-rate bias 0.077 deg/s low (the
+// 0.199, tilt 0.129, translation direction 0.140 deg/s, yaw-rate bias 0.002 deg/s off (the
 // street's windows measure it to about 1 deg/s each; the estimate's own sigma at the end is
 // 0.25 deg/s). With the arcs' rates as the first fit and the bias from the spline's own offset:
 // 0.496 / 0.117 / 0.284; the speed's difference cut at the newest arc: 0.82, 0.72, 0.80 on the
@@ -251,8 +252,8 @@ TEST(BackendAccuracy, StreetDriveOnItsSuspensionWithTheImu) {
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_GE(r.backend.tracked_fraction, 0.95);
   EXPECT_LE(r.backend.rpe.tilt_rmse_deg_s, 0.18);
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.33);
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.25);
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.3);
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.2);
   EXPECT_LE(std::abs(r.yaw_bias_error_deg_s), 0.15);
   std::printf(
       "[backend accuracy] street_drive with the IMU: tilt RPE %.3f deg/s, yaw-rate bias "
