@@ -98,8 +98,9 @@ struct FrontendOptions {
   // the horizon row beside the focus of expansion (facades seen at grazing angles) pins nothing
   // and only adds the objective's second-order biases. car.yaml 0.3: back-end yaw RPE on
   // street_long with /odom 0.567 -> 0.477, street_drive without /odom 0.763 -> 0.578; on
-  // street_drive with /odom over four starts 0.686 -> 0.700 (the body's unmodelled pitch and roll
-  // blur the vertical parallax the kept pixels carry). Indoors mixed: off in vwe_vo.yaml.
+  // street_drive with /odom over four starts 0.686 -> 0.700, and 0.618 with the back-end's
+  // volumes masked as well (BackendOptions::parallax_mask_slope). Indoors mixed: off in
+  // vwe_vo.yaml.
   double parallax_mask_slope = 0.0;
   // With a measured speed (/odom), the rays of each window vote only from volume.z_min_m in front
   // of their own camera, not only of the window's middle: driving forward, the cameras of the
