@@ -285,8 +285,7 @@ void BackendNode::logStatus() {
   ROS_INFO(
       "backend_node: %zu refinements (%zu reverted, %zu volumes, %.2f s in the solver), %zu "
       "arcs in (%zu lost/low held, %zu stale), %zu events in (%zu outside, %zu late, %zu masked), "
-      "%zu gaps, "
-      "%zu loops, %zu resets, %zu intervals merged behind; input: %s",
+      "%zu gaps, %zu loops, %zu resets, %zu intervals merged behind; input: %s",
       s.updates, s.rejected, s.volumes, s.solver_s, in[InputKind::kArc].in, d.arcs_lost,
       d.arcs_stale, s.events_in, s.events_outside + in.events_outside, s.events_out_of_order,
       s.events_masked, d.gaps, d.loops, s.resets, d.refinements_merged,

@@ -713,8 +713,9 @@ TEST(Backend, UnmeasuredArcsAreDeadReckonedAtTheLastMeasuredRates) {
 }
 
 TEST(Backend, ParallaxWedgeEventsAreCountedAndLeftOutOfTheVolumes) {
-  // With parallax_mask_slope the events of the wedge beside the horizon row never reach the
-  // volumes: each is counted once, and exactly those GroundMask names are.
+  // With parallax_mask_slope the events of the wedge beside the horizon row are dropped on
+  // arrival, before the buffer the volumes are cut from: each is counted once, and exactly those
+  // GroundMask names are; the refinement runs on the rest.
   Scene sc;
   BackendOptions o = testOptions();
   o.parallax_mask_slope = 0.5;
@@ -1028,10 +1029,8 @@ TEST(Backend, YamlLoaderFillsBackendOptionsAndNamesBadKeys) {
     std::ofstream(path) << "camera_calibration: " << calib << "\nbackend:\n" << backend;
   };
   write(
-      "  window_s: 3.0\n  tau1_s: 0.25\n  max_line_search_steps: 7\n  parallax_mask_slope: 0.3\n  "
-      "bogus_key: "
-      "1\n  volume:\n    "
-      "num_planes: 17\n");
+      "  window_s: 3.0\n  tau1_s: 0.25\n  max_line_search_steps: 7\n  parallax_mask_slope: 0.3\n"
+      "  bogus_key: 1\n  volume:\n    num_planes: 17\n");
   const PipelineConfig cfg = loadPipelineConfig(path);
   EXPECT_EQ(cfg.backend.window_s, 3.0);
   EXPECT_EQ(cfg.backend.max_line_search_steps, 7);
