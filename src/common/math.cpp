@@ -11,6 +11,13 @@ Mat3 rotZ(double yaw) {
   return R;
 }
 
+Mat3 rotX(double roll) {
+  const double c = std::cos(roll), s = std::sin(roll);
+  Mat3 R;
+  R << 1, 0, 0, 0, c, -s, 0, s, c;
+  return R;
+}
+
 double yawOf(const Mat3& R) {
   return std::atan2(R(1, 0), R(0, 0));
 }

@@ -114,6 +114,8 @@ void FrontendOptions::validate(const std::string& section) const {
   if (!(standstill_event_rate_hz >= 0)) fail("standstill_event_rate_hz must be >= 0");
   if (!(parallax_mask_slope >= 0 && parallax_mask_slope <= 10))
     fail("parallax_mask_slope must be in [0, 10] (0: off)");
+  if (!(roll_rate_step_rad_s >= 0 && roll_rate_step_rad_s <= 0.2))
+    fail("roll_rate_step_rad_s must be in [0, 0.2] rad/s (0: off)");
   if (!(standstill_speed_mps >= 0)) fail("standstill_speed_mps must be >= 0");
   if (!(min_confidence >= 0 && min_confidence < 1)) fail("min_confidence must be in [0, 1)");
   if (!(slow_rate_fraction >= 0 && slow_rate_fraction < 1))
@@ -287,7 +289,8 @@ double Frontend::contrast(const EventVector& events, int64_t t_ref_ns, double om
                           bool deep_planes) {
   if (deep_planes && !one_sided_objective_)
     throw std::logic_error("Frontend: deep planes need one_sided.balance > 0");
-  const AckermannArcModel model(omega, v, t_ref_ns, T_base_cam_);
+  AckermannArcModel model(omega, v, t_ref_ns, T_base_cam_);
+  model.setRollRate(roll_rate_);
   ++stats_.evaluations;
   VweObjective& objective = deep_planes ? *one_sided_objective_ : objective_;
   return objective.evaluate(events, model).contrast;
@@ -301,7 +304,8 @@ std::vector<double> Frontend::contrasts(const EventVector& events, int64_t t_ref
   std::vector<double> f(omegas.size());
   VweObjectivePool& pool = deep_planes ? *one_sided_scan_objectives_ : scan_objectives_;
   pool.run(int(omegas.size()), [&](int i, VweObjective& objective) {
-    const AckermannArcModel model(omegas[size_t(i)], v, t_ref_ns, T_base_cam_);
+    AckermannArcModel model(omegas[size_t(i)], v, t_ref_ns, T_base_cam_);
+    model.setRollRate(roll_rate_);
     f[size_t(i)] = objective.evaluate(events, model).contrast;
   });
   stats_.evaluations += omegas.size();
@@ -434,6 +438,41 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   const double w_ref =
       brentMaximize(f, a, b, best_w, best_f, fa, fb, options_.refine_tolerance_rad_s, 30, &f_ref);
   if (f_ref >= best_f) best_w = w_ref, best_f = f_ref;
+  if (options_.roll_rate_step_rad_s > 0) {
+    // The body's roll rate as a nuisance (FrontendOptions::roll_rate_step_rad_s): the parabola
+    // through -d, 0, +d at the best omega, its vertex within +-2 d, the best of the evaluated
+    // points kept; then omega again at that roll rate.
+    const double d = options_.roll_rate_step_rad_s;
+    auto at = [&](double r) {
+      roll_rate_ = r;
+      ++arc.evaluations;
+      return contrast(events, t_ref_ns, best_w, v, setup.deep_planes);
+    };
+    const double f0 = best_f, fm = at(-d), fp = at(d);
+    double r_best = 0.0, f_best = f0;
+    if (fm > f_best) r_best = -d, f_best = fm;
+    if (fp > f_best) r_best = d, f_best = fp;
+    const double curvature = fm - 2 * f0 + fp;
+    if (curvature < 0) {
+      const double r = d * std::clamp(0.5 * (fm - fp) / curvature, -2.0, 2.0);
+      if (std::abs(r) > 1e-3 * d && std::abs(std::abs(r) - d) > 1e-3 * d) {
+        const double fr = at(r);
+        if (fr > f_best) r_best = r, f_best = fr;
+      }
+    }
+    roll_rate_ = r_best;
+    if (r_best != 0.0) {
+      best_f = f_best;
+      ++stats_.windows_rolled;
+      double f_roll = best_f;
+      const double w_roll =
+          brentMaximize(f, std::max(-wmax, best_w - step), std::min(wmax, best_w + step), best_w,
+                        best_f, nan, nan, options_.refine_tolerance_rad_s, 30, &f_roll);
+      if (f_roll >= best_f) best_w = w_roll, best_f = f_roll;
+    }
+    arc.roll_rate = roll_rate_;
+    roll_rate_ = 0.0;
+  }
   arc.omega = best_w;
   arc.contrast = best_f;
   arc.confidence = best_f > 0 ? std::clamp((best_f - min_f) / best_f, 0.0, 1.0) : 0.0;

@@ -147,6 +147,7 @@ void fields(Archive& a, FrontendOptions* o) {
   a("gyro_prior_half_range_rad_s", &o->gyro_prior_half_range_rad_s);
   a("ground_mask", &o->ground_mask);
   a("parallax_mask_slope", &o->parallax_mask_slope);
+  a("roll_rate_step_rad_s", &o->roll_rate_step_rad_s);
   a("per_camera_min_depth", &o->per_camera_min_depth);
   a("seed", &o->seed);
 }

@@ -335,11 +335,11 @@ void writeArcsCsv(const std::string& path, const std::vector<ArcEstimate>& arcs)
   if (!f) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
   std::fprintf(f,
                "t_ref,t_start,t_end,omega,v,contrast,confidence,num_events,window_events,status,"
-               "evaluations\n");
+               "evaluations,roll_rate\n");
   for (const ArcEstimate& a : arcs)
-    std::fprintf(f, "%.9f,%.9f,%.9f,%.9f,%.6f,%.9g,%.6f,%u,%zu,%s,%d\n", nsToSec(a.t_ref_ns),
+    std::fprintf(f, "%.9f,%.9f,%.9f,%.9f,%.6f,%.9g,%.6f,%u,%zu,%s,%d,%.6f\n", nsToSec(a.t_ref_ns),
                  nsToSec(a.t_start_ns), nsToSec(a.t_end_ns), a.omega, a.v, a.contrast, a.confidence,
-                 a.num_events, a.window_events, toString(a.status), a.evaluations);
+                 a.num_events, a.window_events, toString(a.status), a.evaluations, a.roll_rate);
   std::fclose(f);
 }
 
@@ -375,6 +375,7 @@ nlohmann::json OfflinePipeline::report() const {
                              {"windows_restart_slower", st.windows_restart_slower},
                              {"windows_one_sided", st.windows_one_sided},
                              {"windows_one_sided_near", st.windows_one_sided_near},
+                             {"windows_rolled", st.windows_rolled},
                              {"objective_evaluations", st.evaluations},
                              {"events_ground_masked", st.events_ground_masked},
                              {"follows_backend", follower_.changesArcs()},

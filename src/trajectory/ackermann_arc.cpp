@@ -112,6 +112,12 @@ void AckermannArcModel::setValidInterval(int64_t valid_from_ns, int64_t valid_to
 }
 
 Pose3 AckermannArcModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
+  if (roll_rate_ != 0.0) {
+    if (jac) throw std::logic_error("AckermannArcModel: no Jacobian with a roll rate");
+    const double dt = dtSec(t_ns, t_ref_ns_);
+    const Pose3 roll = makePose(rotX(roll_rate_ * dt), Vec3::Zero());
+    return vehicleToCamera(arcT_Vr_Vt(omega_, v_, dt) * roll, T_base_cam_);
+  }
   ArcJacobian arc_jac;
   const Pose3 T =
       arcT_Cr_Ct(omega_, v_, dtSec(t_ns, t_ref_ns_), T_base_cam_, jac ? &arc_jac : nullptr);

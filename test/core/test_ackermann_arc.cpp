@@ -221,3 +221,41 @@ TEST(AckermannArc, ChainMatchesPiecewiseIntegration) {
   const Pose3 T = arcPropagate(start, 7, 0.5, 1.0, 7 + 400000000LL);
   EXPECT_TRUE(T.isApprox(chain.T_odom_base(400000000LL), 1e-14));
 }
+
+// A roll rate p turns the body about base_link's x axis after the arc: at omega = v = 0 the
+// camera (mounted at p_bc) has rolled by p dt about x through the base origin, so it moved by
+// Rx(p dt) p_bc - p_bc; with omega and v the pose is the arc's composed with that roll.
+TEST(AckermannArc, RollRateTurnsTheBodyAboutItsForwardAxis) {
+  const Pose3 T_bc = testExtrinsics();
+  const int64_t t_ref = 5 * kNsPerSec, t = t_ref + 400000000LL;  // dt = 0.4 s
+  const double p = 0.05, dt = 0.4;
+  AckermannArcModel still(0.0, 0.0, t_ref, T_bc);
+  still.setRollRate(p);
+  EXPECT_DOUBLE_EQ(still.rollRate(), p);
+  const Pose3 T_C = still.T_Cr_Ct(t);
+  const Pose3 T_V = T_bc * T_C * T_bc.inverse();  // the body's motion, back in base_link
+  const double a = p * dt;
+  EXPECT_NEAR(T_V.linear()(1, 1), std::cos(a), 1e-12);
+  EXPECT_NEAR(T_V.linear()(2, 1), std::sin(a), 1e-12);
+  EXPECT_NEAR(T_V.linear()(0, 0), 1.0, 1e-12);
+  EXPECT_LT(T_V.translation().norm(), 1e-12);  // about the base origin: base_link stays put
+  const Vec3 cam_moved = T_C.translation();    // the camera's centre, in the reference camera
+  const Vec3 expected =
+      T_bc.linear().transpose() *
+      (Eigen::AngleAxisd(a, Vec3::UnitX()) * T_bc.translation() - T_bc.translation());
+  EXPECT_LT((cam_moved - expected).norm(), 1e-12);
+
+  AckermannArcModel moving(0.3, 1.2, t_ref, T_bc);
+  const Pose3 flat = moving.T_Cr_Ct(t);
+  moving.setRollRate(p);
+  const Pose3 rolled = moving.T_Cr_Ct(t);
+  const Pose3 expected_V =
+      arcT_Vr_Vt(0.3, 1.2, dt) *
+      makePose(Eigen::AngleAxisd(a, Vec3::UnitX()).toRotationMatrix(), Vec3::Zero());
+  EXPECT_TRUE(rolled.matrix().isApprox(vehicleToCamera(expected_V, T_bc).matrix(), 1e-12));
+  EXPECT_FALSE(rolled.matrix().isApprox(flat.matrix(), 1e-6));
+  PoseJacobian jac;
+  EXPECT_THROW(moving.T_Cr_Ct(t, &jac), std::logic_error);  // no Jacobian with a roll rate
+  moving.setRollRate(0.0);
+  EXPECT_TRUE(moving.T_Cr_Ct(t, &jac).matrix().isApprox(flat.matrix(), 1e-15));
+}

@@ -419,6 +419,40 @@ TEST(Frontend, BadInputIsCountedAndLoopedDataResets) {
 }
 
 /// validate() must refuse o with a message naming `field`.
+// A body rolling at p turns the image about the optical axis: a horizontal flow proportional to
+// the row. With every point above the horizon that shifts them all one way, as a yaw rate does,
+// and the 1-DoF arc absorbs it into omega. With roll_rate_step_rad_s the window's roll rate is a
+// nuisance, one coordinate step (roll at the biased omega, then omega at that roll): the bias
+// shrinks by about half and the roll rate found has the truth's sign, not beyond it.
+TEST(Frontend, ARollRateNuisanceKeepsTheYawRateOfARollingBody) {
+  const double w = 10.0 / kDegPerRad, p = 4.0 / kDegPerRad;
+  const int64_t t_ref = secToNs(5.0);
+  AckermannArcModel truth(w, 0.4, t_ref, defaultTBaseCam());
+  truth.setRollRate(p);
+  std::mt19937 rng(5);
+  std::vector<Vec3> points = synthetic::randomPoints(&rng, 800);
+  for (Vec3& q : points) q.y() = -std::abs(q.y());  // above the principal point
+  const EventVector events = synthetic::pointEvents(camera(), truth, points, 20000, &rng, 0.15);
+  double err[2], roll[2];
+  for (int with_roll = 0; with_roll < 2; ++with_roll) {
+    FrontendOptions o = options();
+    o.ground_mask = false;
+    o.roll_rate_step_rad_s = with_roll ? 2.0 / kDegPerRad : 0.0;
+    Frontend fe(o, camera(), defaultTBaseCam());
+    const ArcEstimate a = fe.estimateWindow(events, t_ref, 0.4, w, 0.15);
+    err[with_roll] = (a.omega - w) * kDegPerRad;
+    roll[with_roll] = a.roll_rate * kDegPerRad;
+    EXPECT_EQ(fe.stats().windows_rolled, size_t(with_roll && a.roll_rate != 0.0));
+  }
+  std::printf("omega error without / with the roll nuisance: %.3f / %.3f deg/s, roll %.2f deg/s\n",
+              err[0], err[1], roll[1]);
+  EXPECT_EQ(roll[0], 0.0);
+  EXPECT_GT(std::abs(err[0]), 0.8);
+  EXPECT_LT(std::abs(err[1]), 0.65 * std::abs(err[0]));
+  EXPECT_GT(roll[1], 1.0);
+  EXPECT_LE(roll[1], 4.0);
+}
+
 static void expectRefusedNaming(const FrontendOptions& o, const std::string& field) {
   try {
     o.validate();
@@ -439,6 +473,11 @@ TEST(Frontend, InvalidOptionsAreRefusedNamingTheField) {
   EXPECT_NO_THROW(o.validate());
   o.volume.pose_slice_s = -1e-3;
   expectRefusedNaming(o, "pose_slice_s");
+  o = FrontendOptions();
+  o.roll_rate_step_rad_s = -0.01;
+  expectRefusedNaming(o, "roll_rate_step_rad_s");
+  o.roll_rate_step_rad_s = 0.5;
+  expectRefusedNaming(o, "roll_rate_step_rad_s");
   o = FrontendOptions();
   o.volume.num_planes = 1;
   EXPECT_THROW(o.validate(), std::invalid_argument);

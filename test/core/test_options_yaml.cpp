@@ -191,6 +191,7 @@ TEST(OptionsYaml, NestedErrorsNameTheFullKey) {
       {"backend:\n  volume: {z_max_m: 0}\n", "backend.volume.z_max_m"},
       {"mapping:\n  global_map: {voxel_size_m: 0}\n", "mapping.global_map.voxel_size_m"},
       {"frontend:\n  one_sided_balance: 2\n", "frontend.one_sided_balance"},
+      {"frontend:\n  roll_rate_step_rad_s: 1\n", "frontend.roll_rate_step_rad_s"},
       {"baseline:\n  klt_window_px: 4\n", "baseline.klt_window_px"},
       {"backend:\n  volume: {margin_px: x}\n", "backend.volume.margin_px"},
   };

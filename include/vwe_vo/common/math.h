@@ -34,6 +34,8 @@ inline double dtSec(int64_t t_ns, int64_t ref_ns) {
 
 /// Rotation about +z by yaw [rad] (counter-clockwise seen from above).
 Mat3 rotZ(double yaw);
+/// Rotation about +x by roll [rad].
+Mat3 rotX(double roll);
 /// Yaw of the x axis of R projected on the xy-plane [rad], in (-pi, pi].
 double yawOf(const Mat3& R);
 /// Wraps an angle to (-pi, pi].

@@ -59,12 +59,18 @@ class AckermannArcModel : public TrajectoryModel {
   void setV(double v) { v_ = v; }
   void setValidInterval(int64_t valid_from_ns, int64_t valid_to_ns);
   const Pose3& T_base_cam() const { return T_base_cam_; }
+  /// Roll rate of the body about base_link's x axis [rad/s] (default 0), composed after the arc:
+  /// T_Vr_Vt = arc(dt) * Rx(roll_rate * dt). The front-end's nuisance for a body rolling on its
+  /// suspension. Poses only: T_Cr_Ct throws if a Jacobian is asked for with a roll rate.
+  void setRollRate(double roll_rate) { roll_rate_ = roll_rate; }
+  double rollRate() const { return roll_rate_; }
 
  private:
   double omega_, v_;
   int64_t t_ref_ns_;
   Pose3 T_base_cam_;
   int64_t valid_from_ns_, valid_to_ns_;
+  double roll_rate_ = 0.0;
 };
 
 }  // namespace vwe_vo
