@@ -438,7 +438,7 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
   const double w_ref =
       brentMaximize(f, a, b, best_w, best_f, fa, fb, options_.refine_tolerance_rad_s, 30, &f_ref);
   if (f_ref >= best_f) best_w = w_ref, best_f = f_ref;
-  if (options_.roll_rate_step_rad_s > 0) {
+  if (options_.roll_rate_step_rad_s > 0 && setup.roll_nuisance) {
     // The body's roll rate as a nuisance (FrontendOptions::roll_rate_step_rad_s): the parabola
     // through -d, 0, +d at the best omega, its vertex within +-2 d, the best of the evaluated
     // points kept; then omega again at that roll rate.
@@ -487,6 +487,7 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
   bool odom_standstill = false, measured = false;
   double v = speedAt(t0, t1, &odom_standstill, &measured);
   const bool cut = options_.per_camera_min_depth && measured;
+  setup.roll_nuisance = measured;
   objective_.setPerCameraMinDepth(cut);
   scan_objectives_.setPerCameraMinDepth(cut);
   if (one_sided_objective_) one_sided_objective_->setPerCameraMinDepth(cut);

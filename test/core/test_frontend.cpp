@@ -439,7 +439,9 @@ TEST(Frontend, ARollRateNuisanceKeepsTheYawRateOfARollingBody) {
     o.ground_mask = false;
     o.roll_rate_step_rad_s = with_roll ? 2.0 / kDegPerRad : 0.0;
     Frontend fe(o, camera(), defaultTBaseCam());
-    const ArcEstimate a = fe.estimateWindow(events, t_ref, 0.4, w, 0.15);
+    WindowScan scan;
+    scan.roll_nuisance = true;  // as for a window with /odom
+    const ArcEstimate a = fe.estimateWindow(events, t_ref, 0.4, w, 0.15, scan);
     err[with_roll] = (a.omega - w) * kDegPerRad;
     roll[with_roll] = a.roll_rate * kDegPerRad;
     EXPECT_EQ(fe.stats().windows_rolled, size_t(with_roll && a.roll_rate != 0.0));

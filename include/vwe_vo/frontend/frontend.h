@@ -108,11 +108,13 @@ struct FrontendOptions {
   // biased omega the roll rate found is short of the truth, and so is the correction). A body
   // rolling on its suspension (a car's 1-2 deg/s) turns the image about the optical axis, a
   // horizontal flow proportional to the row: with the events mostly above the horizon it shifts
-  // them all, as a yaw rate does. car.yaml 1 deg/s: back-end yaw RPE with /odom over four starts,
-  // street_drive 0.618 -> 0.568, its flat twin 0.467 -> 0.402, seed 7 0.543 -> 0.524; without
-  // /odom unchanged within the runs' spread (docs/method.md). The flat twin gains too: the roll
-  // also takes up what a rigid 1-DoF arc misfits in the rows. Indoors within +-0.02 deg/s: off in
-  // vwe_vo.yaml. It costs about 40 % more front-end evaluations.
+  // them all, as a yaw rate does. Only in windows with a measured speed (/odom): at a nominal
+  // speed the scale is off and the roll took up that misfit instead (without /odom, four starts:
+  // street_drive 0.549 -> 0.585, its flat twin 0.478 -> 0.539, seed 7 0.688 -> 0.750). car.yaml
+  // 1 deg/s: back-end yaw RPE with /odom over four starts, street_drive 0.618 -> 0.568, its flat
+  // twin 0.467 -> 0.402, seed 7 0.543 -> 0.524 (docs/method.md). The flat twin gains too: the
+  // roll also takes up what a rigid 1-DoF arc misfits row by row. Indoors within +-0.02 deg/s:
+  // off in vwe_vo.yaml. It costs about 40 % more front-end evaluations.
   double roll_rate_step_rad_s = 0.0;
   // With a measured speed (/odom), the rays of each window vote only from volume.z_min_m in front
   // of their own camera, not only of the window's middle: driving forward, the cameras of the
@@ -172,6 +174,9 @@ struct WindowScan {
   // of a split window), clipped to +-omega_max_rad_s.
   double rescan_lo_rad_s = -std::numeric_limits<double>::infinity();
   double rescan_hi_rad_s = std::numeric_limits<double>::infinity();
+  // Try the body's roll rate as a nuisance (FrontendOptions::roll_rate_step_rad_s): the
+  // front-end sets it for windows with a measured speed.
+  bool roll_nuisance = false;
 };
 
 class Frontend {
