@@ -418,7 +418,6 @@ TEST(Frontend, BadInputIsCountedAndLoopedDataResets) {
   EXPECT_NO_THROW(fe.addEvents({}));
 }
 
-/// validate() must refuse o with a message naming `field`.
 // A body rolling at p turns the image about the optical axis: a horizontal flow proportional to
 // the row. With every point above the horizon that shifts them all one way, as a yaw rate does,
 // and the 1-DoF arc absorbs it into omega. With roll_rate_step_rad_s the window's roll rate is a
@@ -433,7 +432,7 @@ TEST(Frontend, ARollRateNuisanceKeepsTheYawRateOfARollingBody) {
   std::vector<Vec3> points = synthetic::randomPoints(&rng, 800);
   for (Vec3& q : points) q.y() = -std::abs(q.y());  // above the principal point
   const EventVector events = synthetic::pointEvents(camera(), truth, points, 20000, &rng, 0.15);
-  double err[2], roll[2];
+  double err[2], roll[2], omega_off = 0.0;
   for (int with_roll = 0; with_roll < 2; ++with_roll) {
     FrontendOptions o = options();
     o.ground_mask = false;
@@ -445,6 +444,15 @@ TEST(Frontend, ARollRateNuisanceKeepsTheYawRateOfARollingBody) {
     err[with_roll] = (a.omega - w) * kDegPerRad;
     roll[with_roll] = a.roll_rate * kDegPerRad;
     EXPECT_EQ(fe.stats().windows_rolled, size_t(with_roll && a.roll_rate != 0.0));
+    if (!with_roll) {
+      omega_off = a.omega;
+      continue;
+    }
+    // A window without a measured speed is not tried at a roll rate: the arc of the option off.
+    scan.roll_nuisance = false;
+    const ArcEstimate nominal = fe.estimateWindow(events, t_ref, 0.4, w, 0.15, scan);
+    EXPECT_EQ(nominal.roll_rate, 0.0);
+    EXPECT_EQ(nominal.omega, omega_off);
   }
   std::printf("omega error without / with the roll nuisance: %.3f / %.3f deg/s, roll %.2f deg/s\n",
               err[0], err[1], roll[1]);
@@ -455,6 +463,7 @@ TEST(Frontend, ARollRateNuisanceKeepsTheYawRateOfARollingBody) {
   EXPECT_LE(roll[1], 4.0);
 }
 
+/// validate() must refuse o with a message naming `field`.
 static void expectRefusedNaming(const FrontendOptions& o, const std::string& field) {
   try {
     o.validate();
