@@ -646,7 +646,12 @@ std::vector<WindowYawRate> readArcsCsv(const std::string& path) {
     if (it == header.end()) throw std::runtime_error(path + ":1: no column '" + name + "'");
     return size_t(it - header.begin());
   };
-  const size_t c0 = column("t_start"), c1 = column("t_end"), cw = column("omega"),
+  // The front-end's own yaw rate: without the roll where the file has it (windows refined at a
+  // roll rate hand the back-end another).
+  const bool has_without_roll =
+      std::find(header.begin(), header.end(), "omega_without_roll") != header.end();
+  const size_t c0 = column("t_start"), c1 = column("t_end"),
+               cw = column(has_without_roll ? "omega_without_roll" : "omega"),
                cs = column("status");
   std::vector<WindowYawRate> out;
   int line_number = 1;

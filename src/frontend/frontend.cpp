@@ -443,6 +443,7 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
     // through -d, 0, +d at the best omega, its vertex within +-2 d, the best of the evaluated
     // points kept; then omega again at that roll rate.
     const double d = options_.roll_rate_step_rad_s;
+    const double w_without_roll = best_w;
     auto at = [&](double r) {
       roll_rate_ = r;
       ++arc.evaluations;
@@ -471,6 +472,7 @@ ArcEstimate Frontend::estimateWindow(const EventVector& events, int64_t t_ref_ns
       if (f_roll >= best_f) best_w = w_roll, best_f = f_roll;
     }
     arc.roll_rate = roll_rate_;
+    arc.roll_omega_shift = best_w - w_without_roll;
     roll_rate_ = 0.0;
   }
   arc.omega = best_w;
@@ -626,7 +628,7 @@ std::vector<ArcEstimate> Frontend::process(size_t max_windows) {
     }
     for (const ArcEstimate& p : parts) {
       arcs.push_back(p);
-      extendChain(p.t_start_ns, p.t_end_ns, p.omega, p.v);
+      extendChain(p.t_start_ns, p.t_end_ns, p.omegaWithoutRoll(), p.v);
     }
     for (const ArcEstimate& p : parts)
       if (p.status == ArcStatus::kOk && p.t_end_ns - p.t_start_ns >= strideNs() / 2 &&
@@ -723,7 +725,7 @@ Trajectory3 integrateArcs(const std::vector<ArcEstimate>& arcs, int64_t step_ns)
   std::vector<TimedRates> rates;
   rates.reserve(arcs.size());
   for (const ArcEstimate& a : arcs)
-    rates.push_back({a.t_start_ns, a.t_ref_ns, a.t_end_ns, {a.omega, a.v}});
+    rates.push_back({a.t_start_ns, a.t_ref_ns, a.t_end_ns, {a.omegaWithoutRoll(), a.v}});
   return integrateRamps(rates, step_ns);
 }
 

@@ -183,6 +183,8 @@ AckermannArc arcToMsg(const ArcEstimate& a, const std::string& frame_id) {
   m.t_start = toRosTime(a.t_start_ns);
   m.t_end = toRosTime(a.t_end_ns);
   m.omega = a.omega;
+  m.roll_rate = a.roll_rate;
+  m.omega_without_roll = a.omegaWithoutRoll();
   m.v = a.v;
   m.contrast = a.contrast;
   m.confidence = a.confidence;
@@ -197,6 +199,10 @@ ArcEstimate arcFromMsg(const AckermannArc& m) {
   a.t_start_ns = toNs(m.t_start);
   a.t_end_ns = toNs(m.t_end);
   a.omega = m.omega;
+  a.roll_rate = m.roll_rate;
+  // A sender that leaves the roll at 0 (an older recording, another front-end) has only omega.
+  if (m.roll_rate != 0.0 && std::isfinite(m.omega_without_roll))
+    a.roll_omega_shift = m.omega - m.omega_without_roll;
   a.v = m.v;
   a.contrast = m.contrast;
   a.confidence = m.confidence;

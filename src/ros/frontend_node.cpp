@@ -373,7 +373,7 @@ void FrontendNode::publishArc(const ArcEstimate& arc) {
   odom.child_frame_id = frames::kBase;
   odom.pose.pose = poseToMsg(anchoredPose(arc.t_end_ns));
   odom.twist.twist.linear.x = arc.v;
-  odom.twist.twist.angular.z = arc.omega;
+  odom.twist.twist.angular.z = arc.omegaWithoutRoll();
   odom_pub_.publish(sharedMsg(std::move(odom)));
 
   if (iwe_pub_.getNumSubscribers() > 0) publishImage(arc);

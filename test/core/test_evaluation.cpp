@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <functional>
 #include <random>
 
@@ -267,6 +268,27 @@ TEST(Evaluation, JsonHasTheDocumentedKeys) {
   ASSERT_TRUE(js.contains("series"));
   EXPECT_EQ(js["series"]["t_s"].size(), static_cast<size_t>(r.rpe.pairs));
   EXPECT_EQ(js["series"]["rot_err_deg_s"].size(), static_cast<size_t>(r.rpe.pairs));
+}
+
+// arcs.csv by header name: the front-end's own yaw rate is omega_without_roll where the file has
+// it (a window refined at a roll rate), else omega.
+TEST(Evaluation, ArcsCsvReadsTheYawRateWithoutTheRollWhereItIsThere) {
+  const std::string path = testing::TempDir() + "/arcs_roll.csv";
+  for (const bool with_column : {false, true}) {
+    {
+      std::ofstream out(path);
+      out << "t_start,t_end,omega,status" << (with_column ? ",omega_without_roll" : "") << "\n";
+      out << "1.0,1.3,0.25,OK" << (with_column ? ",0.2" : "") << "\n";
+      out << "1.3,1.6,0.0,STANDSTILL" << (with_column ? ",0.0" : "") << "\n";
+    }
+    const std::vector<vwe_vo::WindowYawRate> w = vwe_vo::readArcsCsv(path);
+    ASSERT_EQ(w.size(), 2u);
+    EXPECT_EQ(w[0].omega_rad_s, with_column ? 0.2 : 0.25);
+    EXPECT_EQ(w[0].t_start_ns, 1000000000);
+    EXPECT_EQ(w[0].t_end_ns, 1300000000);
+    EXPECT_FALSE(w[0].standstill);
+    EXPECT_TRUE(w[1].standstill);
+  }
 }
 
 // Found by fuzz_arcs_csv: a time too large for int64 nanoseconds was converted anyway (UB).

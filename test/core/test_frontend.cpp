@@ -446,8 +446,12 @@ TEST(Frontend, ARollRateNuisanceKeepsTheYawRateOfARollingBody) {
     EXPECT_EQ(fe.stats().windows_rolled, size_t(with_roll && a.roll_rate != 0.0));
     if (!with_roll) {
       omega_off = a.omega;
+      EXPECT_EQ(a.omegaWithoutRoll(), a.omega);
       continue;
     }
+    // The front-end's own odometry keeps the arc at roll 0: the option off's.
+    EXPECT_NEAR(a.omegaWithoutRoll(), omega_off, 1e-12);
+    EXPECT_NE(a.roll_omega_shift, 0.0);
     // A window without a measured speed is not tried at a roll rate: the arc of the option off.
     scan.roll_nuisance = false;
     const ArcEstimate nominal = fe.estimateWindow(events, t_ref, 0.4, w, 0.15, scan);

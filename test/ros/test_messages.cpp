@@ -36,6 +36,29 @@ TEST(Messages, AckermannArcStatusConstantsAreTheCoreEnum) {
   }
 }
 
+// A window refined at a roll rate carries both yaw rates: the back-end's (omega) and the
+// front-end's own (without the roll); a sender with roll_rate 0 has only omega, whatever the other
+// field holds.
+TEST(Messages, AckermannArcCarriesTheYawRateWithAndWithoutTheRoll) {
+  vwe_vo::ArcEstimate arc;
+  arc.omega = 0.21;
+  arc.roll_rate = -0.015;
+  arc.roll_omega_shift = 0.04;
+  const vwe_vo::AckermannArc msg = vwe_vo::arcToMsg(arc, "base_link");
+  EXPECT_DOUBLE_EQ(msg.omega, 0.21);
+  EXPECT_DOUBLE_EQ(msg.roll_rate, -0.015);
+  EXPECT_DOUBLE_EQ(msg.omega_without_roll, 0.17);
+  const vwe_vo::ArcEstimate back = vwe_vo::arcFromMsg(msg);
+  EXPECT_DOUBLE_EQ(back.omega, 0.21);
+  EXPECT_DOUBLE_EQ(back.roll_rate, -0.015);
+  EXPECT_NEAR(back.omegaWithoutRoll(), 0.17, 1e-15);
+
+  vwe_vo::AckermannArc unrolled = msg;
+  unrolled.roll_rate = 0.0;
+  unrolled.omega_without_roll = 0.0;  // never written by such a sender
+  EXPECT_EQ(vwe_vo::arcFromMsg(unrolled).omegaWithoutRoll(), 0.21);
+}
+
 // The design's SplineTrajectory fields carry a spline through splineToMsg / splineFromMsg: degree,
 // knots (seconds since knot_epoch) and control points survive, and knots = points + degree + 1.
 TEST(Messages, SplineTrajectoryCarriesDegreeKnotsAndControlPoints) {

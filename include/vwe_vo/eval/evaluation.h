@@ -147,7 +147,8 @@ WindowYawRateResult evaluateWindowYawRates(const Trajectory3& gt,
 /// The ground truth's mean yaw rate over [t0, t1], (yaw(t1) - yaw(t0)) / (t1 - t0) [rad/s];
 /// false if t1 <= t0 or the truth does not cover both ends.
 bool meanYawRate(const Trajectory3& gt, int64_t t0_ns, int64_t t1_ns, double* rate_rad_s);
-/// Reads the front-end's arcs.csv (columns t_start, t_end, omega, status by header name).
+/// Reads the front-end's arcs.csv (columns t_start, t_end, omega_without_roll or else omega,
+/// status by header name).
 std::vector<WindowYawRate> readArcsCsv(const std::string& path);
 nlohmann::json toJson(const WindowYawRateResult& result);
 

@@ -139,12 +139,18 @@ struct ArcEstimate {
   ArcStatus status = ArcStatus::kOk;
   int evaluations = 0;     // objective evaluations spent
   double roll_rate = 0.0;  // the roll rate omega was refined at (roll_rate_step_rad_s) [rad/s]
+  /// omega less the yaw rate of the window's best arc at roll rate 0 (non-zero only in windows
+  /// refined at a roll rate) [rad/s]. The back-end refines from omega; the front-end's own
+  /// odometry (T_odom_base, integrateArcs, the odom of frontend_node) dead-reckons the arc without
+  /// the roll, whose windows scatter less (docs/method.md).
+  double roll_omega_shift = 0.0;
+  double omegaWithoutRoll() const { return omega - roll_omega_shift; }
 };
 
-/// Dead reckoning through the arcs with omega and v ramping between the arcs' reference times
-/// (integrateRamps: each arc estimates the mean rate over its window, i.e. the rate at its
-/// middle), integrated in steps of step_ns. Poses of base_link in odom from the identity at the
-/// first arc's start to the last arc's end. Follows ramps in the yaw rate that a chain of
+/// Dead reckoning through the arcs with omegaWithoutRoll() and v ramping between the arcs'
+/// reference times (integrateRamps: each arc estimates the mean rate over its window, i.e. the rate
+/// at its middle), integrated in steps of step_ns. Poses of base_link in odom from the identity at
+/// the first arc's start to the last arc's end. Follows ramps in the yaw rate that a chain of
 /// constant arcs would turn into steps.
 Trajectory3 integrateArcs(const std::vector<ArcEstimate>& arcs, int64_t step_ns);
 
