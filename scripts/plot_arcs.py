@@ -37,7 +37,9 @@ def main():
     a = ap.parse_args()
     rows = list(csv.DictReader(open(a.arcs)))
     t = [float(r["t_ref"]) for r in rows]
-    w = [math.degrees(float(r["omega"])) for r in rows]
+    # The front-end's own yaw rate (the arc at roll 0) where the file has it, as vwe_vo_eval --arcs.
+    key = "omega_without_roll" if rows and "omega_without_roll" in rows[0] else "omega"
+    w = [math.degrees(float(r[key])) for r in rows]
     rate = [float(r["window_events"]) / max(1e-9, float(r["t_end"]) - float(r["t_start"])) / 1e6 for r in rows]
     status = [r["status"] for r in rows]
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
