@@ -63,6 +63,9 @@ void BackendOptions::validate(const std::string& section) const {
     fail("stop_ramp_max_s must be in [0, 10] s (0: off)");
   if (!(nominal_min_tangent_speed_mps > 0 && nominal_min_tangent_speed_mps <= 10))
     fail("nominal_min_tangent_speed_mps must be in (0, 10] m/s");
+  if (!(std::abs(pitch_per_g_deg) <= 30))
+    fail("pitch_per_g_deg must be in [-30, 30] deg/g (0: off)");
+  if (!(std::abs(roll_per_g_deg) <= 30)) fail("roll_per_g_deg must be in [-30, 30] deg/g (0: off)");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
   if (!(output_rate_hz > 0 && output_rate_hz <= 10000))
     fail("output_rate_hz must be in (0, 10000] Hz");

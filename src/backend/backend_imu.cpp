@@ -35,14 +35,50 @@ void Backend::addImu(const ImuSample& sample) {
 }
 
 Tilt Backend::tiltAt(int64_t t_ns) const {
-  return imu_ ? imu_->tilts.at(t_ns) : Tilt();
+  if (imu_) return imu_->tilts.at(t_ns);
+  return tiltInPose() ? accelerationTiltAt(t_ns) : Tilt();
 }
 
 Pose3 Backend::withTilt(int64_t t_ns, const Pose3& T_planar) const {
-  if (imu_->tilts.empty()) return T_planar;
+  if (imu_ && imu_->tilts.empty()) return T_planar;
   Pose3 T = T_planar;
-  T.linear() = T_planar.linear() * imu_->tilts.at(t_ns).rotation();
+  T.linear() = T_planar.linear() * tiltAt(t_ns).rotation();
   return T;
+}
+
+int64_t Backend::accelerationSpan_ns() const {
+  int64_t diff_ns = 100000000;
+  if (!arcs_.empty()) diff_ns = std::max(diff_ns, arcs_.back().t_end_ns - arcs_.back().t_start_ns);
+  return diff_ns;
+}
+
+bool Backend::vehicleMotionAt(int64_t t_ns, int64_t diff_ns, VehicleMotion* motion) const {
+  if (!dead_reckoning_) return false;
+  Pose3 T;
+  double v = 0, w = 0, va = 0, vb = 0, unused = 0;
+  const int64_t a = std::max(dead_reckoning_->startTime(), t_ns - diff_ns),
+                b = std::min(newest_arc_ns_, t_ns + diff_ns);
+  if (!planarPoseAt(t_ns, &T, &v, &w) || !planarPoseAt(a, &T, &va, &unused) ||
+      !planarPoseAt(b, &T, &vb, &unused))
+    return false;
+  const double dt = dtSec(b, a);
+  motion->v = v;
+  motion->omega = w;
+  motion->dv = dt > 0 ? (vb - va) / dt : 0.0;
+  return true;
+}
+
+Tilt Backend::accelerationTiltAt(int64_t t_ns) const {
+  // The quasi-static response of the suspension (its ride frequencies, ~1-1.5 Hz on a car, are
+  // faster than the braking and steering): a pitch and a roll proportional to the longitudinal
+  // and lateral accelerations.
+  constexpr double kGravity = 9.80665;  // [m/s^2]
+  Tilt tilt;
+  VehicleMotion m;
+  if (!vehicleMotionAt(t_ns, accelerationSpan_ns(), &m)) return tilt;
+  tilt.pitch = -options_.pitch_per_g_deg / kDegPerRad * m.dv / kGravity;
+  tilt.roll = options_.roll_per_g_deg / kDegPerRad * m.v * m.omega / kGravity;
+  return tilt;
 }
 
 namespace {
@@ -73,8 +109,7 @@ void Backend::advanceImu(bool to_newest) {
   // filter runs that far behind the newest arc, so the difference is central: cut at the newest
   // arc, it lagged the car's braking and accelerating into pitch (street_drive with the IMU:
   // estimated pitch varying 0.96 deg RMS against the car's 0.24, tilt RPE 0.72 -> 0.28 deg/s).
-  int64_t diff_ns = 100000000;
-  if (!arcs_.empty()) diff_ns = std::max(diff_ns, arcs_.back().t_end_ns - arcs_.back().t_start_ns);
+  const int64_t diff_ns = accelerationSpan_ns();
   // The gyro's yaw rates (the back-end's prior) up to the newest arc, with the newest tilt; the
   // tilt moves little in diff_ns, and the Euler yaw rate barely depends on it.
   const Tilt tilt = m.attitude.tilt();
@@ -88,18 +123,9 @@ void Backend::advanceImu(bool to_newest) {
     const ImuSample s = m.pending.front();
     m.pending.pop_front();
     if (t0 >= 0 && s.t_ns >= t0 && (m.motion_ns < 0 || s.t_ns >= m.motion_ns + kMotionStep_ns)) {
-      // The spline's (or the arcs') speed and yaw rate, with a central difference for dv.
-      Pose3 T;
-      double v = 0, w = 0, va = 0, vb = 0, unused = 0;
-      const int64_t a = std::max(t0, s.t_ns - diff_ns),
-                    b = std::min(newest_arc_ns_, s.t_ns + diff_ns);
-      if (planarPoseAt(s.t_ns, &T, &v, &w) && planarPoseAt(a, &T, &va, &unused) &&
-          planarPoseAt(b, &T, &vb, &unused)) {
-        const double dt = dtSec(b, a);
-        m.motion.v = v;
-        m.motion.omega = w;  // replaced by the gyro's below
-        m.motion.dv = dt > 0 ? (vb - va) / dt : 0.0;
-      }
+      // The spline's (or the arcs') speed and yaw rate, with a central difference for dv; the
+      // yaw rate is replaced by the gyro's below.
+      vehicleMotionAt(s.t_ns, diff_ns, &m.motion);
       m.motion_ns = s.t_ns;
     }
     // The centripetal acceleration v omega with the gyro's yaw rate (bias removed): the

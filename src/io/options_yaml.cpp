@@ -181,6 +181,8 @@ void fields(Archive& a, BackendOptions* o) {
   a("stop_ramp_max_s", &o->stop_ramp_max_s);
   a("start_ramps", &o->start_ramps);
   a("nominal_min_tangent_speed_mps", &o->nominal_min_tangent_speed_mps);
+  a("pitch_per_g_deg", &o->pitch_per_g_deg);
+  a("roll_per_g_deg", &o->roll_per_g_deg);
   a("output_rate_hz", &o->output_rate_hz);
   a("seed", &o->seed);
 }

@@ -414,7 +414,10 @@ nlohmann::json OfflinePipeline::report() const {
         {"events_outside_sensor", b.events_outside},
         {"events_out_of_order", b.events_out_of_order},
         {"events_parallax_masked", b.events_masked},
-        {"control_points", backend_->hasSpline() ? backend_->spline().numControlPoints() : 0}};
+        {"control_points", backend_->hasSpline() ? backend_->spline().numControlPoints() : 0},
+        {"pose_tilt", !backend_->tiltInPose() ? "planar"
+                      : backend_->usesImu()   ? "imu"
+                                              : "accelerations"}};
     if (!arc_truth_.empty())
       j["stages"]["backend"]["arcs_from_truth"] = {{"blend", arc_truth_blend_},
                                                    {"arcs", arcs_from_truth_},

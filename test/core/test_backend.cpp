@@ -712,6 +712,53 @@ TEST(Backend, UnmeasuredArcsAreDeadReckonedAtTheLastMeasuredRates) {
   EXPECT_TRUE(T.matrix().allFinite());
 }
 
+TEST(Backend, PosesTiltWithTheAccelerationsByTheBodysPitchAndRollGradients) {
+  // A car braking at 2 m/s^2 (0.3 s arcs, 8 m/s down by 0.6 m/s each) on a 0.1 rad/s curve.
+  // With a pitch gradient of 3 deg/g it dives 3 x 2 / g deg, and with 5 deg/g of roll it leans
+  // out of the curve by 5 v omega / g deg: the published pose carries both; without measured
+  // speeds (or without the gradients) it stays planar.
+  const CameraModel cam(testCalibration());
+  BackendOptions o = testOptions();
+  o.pitch_per_g_deg = 3.0;
+  o.roll_per_g_deg = 5.0;
+  std::vector<ArcEstimate> arcs;
+  for (int k = 0; k < 10; ++k) {
+    arcs.push_back(windowArc(k, 0.1));
+    arcs.back().v = 8.0 - 0.6 * k;
+  }
+  constexpr double g = 9.80665;
+  for (const bool measured : {true, false}) {
+    for (const bool gradients : {true, false}) {
+      BackendOptions oc = o;
+      if (!gradients) oc.pitch_per_g_deg = oc.roll_per_g_deg = 0.0;
+      Backend b(oc, cam, testExtrinsics());
+      b.setSpeedsMeasured(measured);
+      for (const ArcEstimate& a : arcs) b.addArc(a);
+      const bool tilted = measured && gradients;
+      EXPECT_EQ(b.tiltInPose(), tilted);
+      for (int k = 2; k < 8; ++k) {
+        const int64_t t = arcs[size_t(k)].t_ref_ns;
+        Pose3 T, P;
+        double v = 0.0;
+        ASSERT_TRUE(b.poseAt(t, &T, nullptr, nullptr));
+        ASSERT_TRUE(b.planarPoseAt(t, &P, &v, nullptr));
+        const Tilt tilt = b.tiltAt(t);
+        // The pose is the planar one with the tilt composed in base_link.
+        EXPECT_LT((T.linear() - P.linear() * tilt.rotation()).norm(), 1e-12);
+        EXPECT_LT((T.translation() - P.translation()).norm(), 1e-12);
+        if (!tilted) {
+          EXPECT_EQ(tilt.pitch, 0.0);
+          EXPECT_EQ(tilt.roll, 0.0);
+          continue;
+        }
+        EXPECT_NEAR(tilt.pitch * kDegPerRad, 3.0 * 2.0 / g, 0.02) << "k = " << k;  // 0.61 deg
+        EXPECT_NEAR(v, arcs[size_t(k)].v, 0.05);
+        EXPECT_NEAR(tilt.roll * kDegPerRad, 5.0 * v * 0.1 / g, 0.01) << "k = " << k;
+      }
+    }
+  }
+}
+
 TEST(Backend, ParallaxWedgeEventsAreCountedAndLeftOutOfTheVolumes) {
   // With parallax_mask_slope the events of the wedge beside the horizon row are dropped on
   // arrival, before the buffer the volumes are cut from: each is counted once, and exactly those
@@ -865,6 +912,12 @@ TEST(Backend, OptionsValidateNamesTheField) {
   o = BackendOptions();
   o.parallax_mask_slope = -0.1;
   expectField(o, "parallax_mask_slope");
+  o = BackendOptions();
+  o.pitch_per_g_deg = std::nan("");
+  expectField(o, "pitch_per_g_deg");
+  o = BackendOptions();
+  o.roll_per_g_deg = 45.0;
+  expectField(o, "roll_per_g_deg");
   o = BackendOptions();
   o.volume.pose_slice_s = -0.001;
   expectField(o, "pose_slice_s");

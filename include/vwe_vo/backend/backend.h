@@ -99,8 +99,16 @@ struct BackendOptions {
   double nominal_min_tangent_speed_mps = 0.03;
   double max_backwards_jump_s = 0.5;  // arcs older than newest - this reset (YAML:
                                       // input.max_backward_jump_s) [s]
-  double output_rate_hz = 20.0;       // rate of the sampled trajectory (backend.tum) [Hz]
-  uint64_t seed = 1;                  // subsampling seed
+  /// With /odom and without the IMU, the published poses (backend.tum, tf, /vwe/odom) carry the
+  /// body's pitch and roll on its suspension as the response to the vehicle's own accelerations,
+  /// from the refined trajectory: pitch = pitch_per_g * (-dv/dt) / g (braking dives the nose,
+  /// pitch > 0), roll = roll_per_g * v omega / g (the body leans out of a turn). The estimate
+  /// stays planar; only its output is tilted. A car's pitch gradient is a few deg/g
+  /// (config/car.yaml), a turtlebot's accelerations too small to matter (0: off) [deg/g].
+  double pitch_per_g_deg = 0.0;
+  double roll_per_g_deg = 0.0;   // roll gradient (0: off) [deg/g]
+  double output_rate_hz = 20.0;  // rate of the sampled trajectory (backend.tum) [Hz]
+  uint64_t seed = 1;             // subsampling seed
   /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
   void validate(const std::string& section = "backend") const;
 };
@@ -336,14 +344,23 @@ class Backend {
   /// speed, so that acceleration, is unknown: its tilt was worse than none (street_drive without
   /// /odom: translation direction RPE 1.80 deg/s with the tilt, 0.28 planar; indoor_drive 0.41,
   /// 0.32). Without, the pose stays planar; the gyro's yaw rate is fused all the same.
-  bool tiltInPose() const { return imu_ != nullptr && speeds_measured_; }
+  /// Without the IMU, with measured speeds and a pitch or roll gradient (pitch_per_g_deg), the
+  /// tilt is the suspension's response to the trajectory's accelerations (accelerationTiltAt).
+  bool tiltInPose() const {
+    return speeds_measured_ &&
+           (imu_ != nullptr || options_.pitch_per_g_deg != 0.0 || options_.roll_per_g_deg != 0.0);
+  }
   /// One IMU sample in the IMU frame (time order; ignored unless enableImu()). It is used once the
   /// arcs reach its time.
   void addImu(const ImuSample& sample);
   /// Valid with usesImu().
   const BackendImuStats& imuStats() const;
-  /// The estimated tilt of base_link at t_ns (zero without the IMU).
+  /// The estimated tilt of base_link at t_ns: the IMU's, else the one of the accelerations (zero
+  /// unless tiltInPose()).
   Tilt tiltAt(int64_t t_ns) const;
+  /// The body's tilt from the refined trajectory's accelerations at t_ns, with the pitch and roll
+  /// gradients (pitch_per_g_deg, roll_per_g_deg); zero where the trajectory has no pose.
+  Tilt accelerationTiltAt(int64_t t_ns) const;
 
   const BackendOptions& options() const { return options_; }
   /// Whether the arcs' speeds are measurements (/odom), the default, or the front-end's nominal
@@ -388,8 +405,8 @@ class Backend {
   /// same rule as the spline's fit: with interpolate_arc_rates the rates ramp between the arcs'
   /// middles (poses up to finalUntil() are final, the ones after it extrapolate the newest arc),
   /// else each arc's rates over its own window. False if t_ns is outside [first arc, newest arc].
-  /// With the IMU and measured speeds (tiltInPose) the pose is composed with the estimated tilt
-  /// (tiltAt); the rates are the planar pose's.
+  /// With measured speeds and the IMU or a pitch / roll gradient (tiltInPose) the pose is composed
+  /// with the estimated tilt (tiltAt); the rates are the planar pose's.
   bool poseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const;
   /// The same without the tilt (the planar pose; equal to poseAt without the IMU).
   bool planarPoseAt(int64_t t_ns, Pose3* T_odom_base, double* v, double* omega) const;
@@ -443,6 +460,12 @@ class Backend {
   /// yet filtered; false unless they cover most of it.
   bool gyroMeanYawRate(int64_t a_ns, int64_t b_ns, double* omega) const;
   Pose3 withTilt(int64_t t_ns, const Pose3& T_planar) const;
+  /// The planar trajectory's speed, yaw rate and (central difference over diff_ns each side, cut
+  /// at the first and newest arcs) acceleration at t_ns; false where it has no pose.
+  bool vehicleMotionAt(int64_t t_ns, int64_t diff_ns, VehicleMotion* motion) const;
+  /// The span of that central difference: at least 0.1 s and one arc. The arcs' speeds are
+  /// constant per window; a shorter difference across their steps gives spikes of acceleration.
+  int64_t accelerationSpan_ns() const;
 
   BackendOptions options_;
   bool speeds_measured_ = true;
