@@ -42,8 +42,12 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def config_for(seq):
-    # The street sequences are recorded with the car mount (as scripts/demo.sh does).
-    return os.path.join(ROOT, "config", "car.yaml" if seq.startswith("street") else "vwe_vo.yaml")
+    """The street sequences are recorded with the car mount (as scripts/demo.sh does); only
+    street_drive's car has a suspension, street_long's and the flat twins' body is rigid."""
+    if not seq.startswith("street"):
+        return os.path.join(ROOT, "config", "vwe_vo.yaml")
+    suspended = seq.startswith("street_drive") and "_flat" not in seq
+    return os.path.join(ROOT, "config", "car.yaml" if suspended else "car_rigid.yaml")
 
 
 def evaluate(binary, gt, est):
@@ -59,9 +63,10 @@ def evaluate(binary, gt, est):
 def seeded_config(config, seed):
     """A copy of config with both subsampling seeds set (relative paths kept working)."""
     d = yaml.safe_load(open(config))
-    calib = d.get("camera_calibration")
-    if calib and not os.path.isabs(calib):
-        d["camera_calibration"] = os.path.join(os.path.dirname(os.path.abspath(config)), calib)
+    for key in ("camera_calibration", "include"):
+        path = d.get(key)
+        if path and not os.path.isabs(path):
+            d[key] = os.path.join(os.path.dirname(os.path.abspath(config)), path)
     for section in ("frontend", "backend"):
         d.setdefault(section, {})["seed"] = seed
     f = tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False)

@@ -19,8 +19,14 @@ for s in "${seqs[@]}"; do
   mkdir -p "$d"
   # The street sequences are simulated with a car mount (config/car.yaml), the others with the
   # turtlebot mount of config/vwe_vo.yaml: the pipeline must use the extrinsics of the recording.
+  # Only street_drive's car pitches and rolls on a suspension; street_long's and the flat twins'
+  # body is rigid (config/car_rigid.yaml): the configuration describes the vehicle.
   cfg="$root/config/vwe_vo.yaml"
-  case "$s" in street*) cfg="$root/config/car.yaml" ;; esac
+  case "$s" in
+    street_drive*_flat*) cfg="$root/config/car_rigid.yaml" ;;
+    street_drive*) cfg="$root/config/car.yaml" ;;
+    street*) cfg="$root/config/car_rigid.yaml" ;;
+  esac
   echo "[demo] 2/4 $s: pipeline with $(basename "$cfg") (speed from the bag's /odom, as on a robot with wheel odometry)"
   "$bin/vwe_vo_offline" --bag "$seq_dir/$s.bag" --config "$cfg" --use-odom --depth-png --out "$d"
   # The frame baseline in a run of its own: each method's real-time factor is its own.

@@ -291,6 +291,48 @@ void emit(YAML::Node* root, const char* section, Options o) {
   fields(w, &o);
 }
 
+/// The folder of a file path ("." for a bare name).
+std::string folderOf(const std::string& path) {
+  const size_t slash = path.find_last_of('/');
+  return slash == std::string::npos ? std::string(".") : path.substr(0, slash);
+}
+
+/// over laid on base: maps merge key by key (recursively), anything else in over replaces base.
+YAML::Node overlaid(const YAML::Node& base, const YAML::Node& over) {
+  if (!base.IsMap() || !over.IsMap()) return YAML::Clone(over);
+  YAML::Node out = YAML::Clone(base);
+  for (const auto& kv : over) {
+    const std::string key = kv.first.as<std::string>();
+    out[key] = base[key] ? overlaid(base[key], kv.second) : YAML::Clone(kv.second);
+  }
+  return out;
+}
+
+/// A configuration file over the file it names as `include` (relative to its own folder; that
+/// file may include another): its keys replace the included file's, section by section. Each
+/// file's relative camera_calibration is resolved against that file's folder.
+YAML::Node loadConfigTree(const std::string& path, int depth) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::Exception& e) {
+    throw std::runtime_error(path + ": cannot read configuration: " + e.what());
+  }
+  if (!root.IsMap()) return root;
+  if (root["camera_calibration"]) {
+    const std::string calib = root["camera_calibration"].as<std::string>();
+    if (!calib.empty() && calib[0] != '/')
+      root["camera_calibration"] = folderOf(path) + "/" + calib;
+  }
+  if (!root["include"]) return root;
+  if (depth >= 8) throw std::runtime_error(path + ": includes nest deeper than 8 files (a cycle?)");
+  std::string included = root["include"].as<std::string>();
+  if (included.empty()) throw std::runtime_error(path + ": include names no file");
+  if (included[0] != '/') included = folderOf(path) + "/" + included;
+  root.remove("include");
+  return overlaid(loadConfigTree(included, depth + 1), root);
+}
+
 }  // namespace
 
 void loadOptions(const YAML::Node& node, const std::string& section, FrontendOptions* o,
@@ -357,12 +399,7 @@ PipelineConfig loadPipelineConfig(const std::string& path,
   std::string calib = default_calibration_path.empty() ? defaultConfigDir() + "/davis346.yaml"
                                                        : default_calibration_path;
   if (!path.empty()) {
-    YAML::Node root;
-    try {
-      root = YAML::LoadFile(path);
-    } catch (const YAML::Exception& e) {
-      throw std::runtime_error(path + ": cannot read configuration: " + e.what());
-    }
+    const YAML::Node root = loadConfigTree(path, 0);
     static const std::set<std::string> known = {
         "camera_calibration", "T_base_cam", "input", "frontend", "backend",
         "baseline",           "mapping",    "imu"};
@@ -370,14 +407,7 @@ PipelineConfig loadPipelineConfig(const std::string& path,
       if (!known.count(kv.first.as<std::string>()))
         cfg.warnings.push_back(path + ": unknown top-level key '" + kv.first.as<std::string>() +
                                "' ignored");
-    if (root["camera_calibration"]) {
-      calib = root["camera_calibration"].as<std::string>();
-      if (!calib.empty() && calib[0] != '/') {
-        const size_t slash = path.find_last_of('/');
-        calib =
-            (slash == std::string::npos ? std::string(".") : path.substr(0, slash)) + "/" + calib;
-      }
-    }
+    if (root["camera_calibration"]) calib = root["camera_calibration"].as<std::string>();
     cfg.T_base_cam = loadTBaseCam(root, path, &cfg.warnings);
     std::vector<std::string> warnings;
     try {

@@ -3,10 +3,12 @@
 // finite poses through a standstill, and option validation.
 #include <gtest/gtest.h>
 #include <unistd.h>
+#include <yaml-cpp/yaml.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <string>
 #include <tuple>
@@ -1073,6 +1075,51 @@ TEST(Backend, TruthArcsBlendBetweenTheTruthAndTheFrontEnd) {
   EXPECT_THROW(started.setBackendArcsFromTruth({}, 0.0), std::invalid_argument);
   started.addEvents(EventVector(sc.events.begin(), sc.events.begin() + 100));
   EXPECT_THROW(started.setBackendArcsFromTruth(truth, 0.0), std::logic_error);
+}
+
+TEST(Backend, YamlIncludeLaysAFileOverTheOneItNamesSectionBySection) {
+  // base.yaml in a sub-folder, with a relative calibration; over.yaml includes it by a relative
+  // path and replaces one key of backend and one of backend.volume: the others stay the base's.
+  const std::string dir = "/tmp/vwe_vo_test_include_" + std::to_string(::getpid());
+  ASSERT_EQ(std::system(("mkdir -p " + dir + "/sub").c_str()), 0);
+  ASSERT_EQ(std::system(("cp " + std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml " + dir +
+                         "/sub/cam.yaml")
+                            .c_str()),
+            0);
+  std::ofstream(dir + "/sub/base.yaml")
+      << "camera_calibration: cam.yaml\nfrontend:\n  window_duration_s: 0.25\nbackend:\n"
+         "  window_s: 3.0\n  tau1_s: 0.25\n  volume:\n    num_planes: 17\n    z_min_m: 2.0\n";
+  std::ofstream(dir + "/over.yaml")
+      << "include: sub/base.yaml\nbackend:\n  tau1_s: 0.3\n  volume:\n    num_planes: 20\n";
+  const PipelineConfig cfg = loadPipelineConfig(dir + "/over.yaml");
+  EXPECT_EQ(cfg.backend.tau1_s, 0.3);
+  EXPECT_EQ(cfg.backend.volume.num_planes, 20);
+  EXPECT_EQ(cfg.backend.window_s, 3.0);
+  EXPECT_EQ(cfg.backend.volume.z_min_m, 2.0);
+  EXPECT_EQ(cfg.frontend.window_duration_s, 0.25);
+  EXPECT_EQ(cfg.camera.width, 346);  // sub/cam.yaml, found from base.yaml's folder
+  EXPECT_TRUE(cfg.warnings.empty()) << cfg.warnings.front();
+  // A file that includes itself is refused with its name.
+  std::ofstream(dir + "/loop.yaml") << "include: loop.yaml\n";
+  try {
+    loadPipelineConfig(dir + "/loop.yaml");
+    ADD_FAILURE() << "an include cycle accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("loop.yaml"), std::string::npos) << e.what();
+  }
+  ASSERT_EQ(std::system(("rm -rf " + dir).c_str()), 0);
+  // The shipped rigid car is car.yaml with the suspension's tilt off, and nothing else.
+  const std::string config = std::string(VWE_VO_SOURCE_DIR) + "/config/";
+  PipelineConfig rigid = loadPipelineConfig(config + "car_rigid.yaml");
+  const PipelineConfig car = loadPipelineConfig(config + "car.yaml");
+  EXPECT_EQ(rigid.backend.pitch_per_g_deg, 0.0);
+  EXPECT_EQ(rigid.backend.roll_per_g_deg, 0.0);
+  EXPECT_GT(car.backend.pitch_per_g_deg, 0.0);
+  EXPECT_GT(car.backend.roll_per_g_deg, 0.0);
+  rigid.backend.pitch_per_g_deg = car.backend.pitch_per_g_deg;
+  rigid.backend.roll_per_g_deg = car.backend.roll_per_g_deg;
+  EXPECT_EQ(YAML::Dump(optionsToYaml(rigid)), YAML::Dump(optionsToYaml(car)));
+  EXPECT_EQ(rigid.camera.width, car.camera.width);
 }
 
 TEST(Backend, YamlLoaderFillsBackendOptionsAndNamesBadKeys) {

@@ -145,7 +145,7 @@ TEST(EmvsOnSequences, IndoorLongWithTruePoses) {
 
 // Car in the street at 5-8 m/s: facades, parked cars, poles, the road.
 TEST(EmvsOnSequences, StreetLongWithTruePoses) {
-  const DepthScore s = mapEvents("street_long", "car.yaml", 1.0, 3.5, Poses::kTrue);
+  const DepthScore s = mapEvents("street_long", "car_rigid.yaml", 1.0, 3.5, Poses::kTrue);
   ASSERT_GE(s.keyframes, 3u);
   ASSERT_GE(s.points, 2000u);
   EXPECT_GE(s.compared, s.points * 9 / 10);
@@ -169,7 +169,7 @@ TEST(EmvsOnSequences, IndoorLongWithEstimatedPoses) {
 // of yaw-rate error. Over 8 stretches from 1 to 29 s (80 planes) the median is 5.9 % on
 // average, 5.0 % without the mask.
 TEST(EmvsOnSequences, StreetLongWithEstimatedPoses) {
-  const DepthScore s = mapEvents("street_long", "car.yaml", 1.0, 3.5, Poses::kEstimated);
+  const DepthScore s = mapEvents("street_long", "car_rigid.yaml", 1.0, 3.5, Poses::kEstimated);
   ASSERT_GE(s.keyframes, 3u);
   ASSERT_GE(s.points, 2000u);
   EXPECT_LE(s.median, 0.07);
@@ -261,7 +261,7 @@ TEST(EmvsOnSequences, IndoorKeyframeAsDenseAsRpgEmvs) {
 }
 
 TEST(EmvsOnSequences, StreetKeyframeAsDenseAsRpgEmvs) {
-  const KeyframeScore s = mapOneKeyframe("street_long", "car.yaml", 1.0, 1.35);
+  const KeyframeScore s = mapOneKeyframe("street_long", "car_rigid.yaml", 1.0, 1.35);
   EXPECT_GE(s.points, 2488u);
   EXPECT_LE(s.median, 0.0225);  // rpg_emvs 2.08-2.14 %, within the bootstrap spread
   EXPECT_LE(s.p90, 0.46);

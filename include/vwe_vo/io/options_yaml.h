@@ -62,7 +62,9 @@ struct PipelineConfig {
 
 /// Reads a configuration file (throws std::runtime_error / std::invalid_argument naming the
 /// file and key on malformed values). An empty path gives the shipped defaults, with the
-/// calibration from default_calibration_path.
+/// calibration from default_calibration_path. A file may name another as `include: FILE`
+/// (relative to its folder): it is read first, and this file's keys replace its, section by
+/// section (config/car_rigid.yaml is config/car.yaml without the suspension's tilt).
 PipelineConfig loadPipelineConfig(const std::string& path,
                                   const std::string& default_calibration_path = "");
 
