@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cstdlib>
+#include <filesystem>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -329,6 +330,9 @@ YAML::Node loadConfigTree(const std::string& path, int depth) {
   std::string included = root["include"].as<std::string>();
   if (included.empty()) throw std::runtime_error(path + ": include names no file");
   if (included[0] != '/') included = folderOf(path) + "/" + included;
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(included, ec))
+    throw std::runtime_error(path + ": include '" + included + "' is not a readable file");
   root.remove("include");
   return overlaid(loadConfigTree(included, depth + 1), root);
 }

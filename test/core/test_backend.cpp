@@ -1107,6 +1107,14 @@ TEST(Backend, YamlIncludeLaysAFileOverTheOneItNamesSectionBySection) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("loop.yaml"), std::string::npos) << e.what();
   }
+  // A missing included file is named.
+  std::ofstream(dir + "/missing.yaml") << "include: nowhere.yaml\n";
+  try {
+    loadPipelineConfig(dir + "/missing.yaml");
+    ADD_FAILURE() << "a missing include accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("nowhere.yaml"), std::string::npos) << e.what();
+  }
   ASSERT_EQ(std::system(("rm -rf " + dir).c_str()), 0);
   // The shipped rigid car is car.yaml with the suspension's tilt off, and nothing else.
   const std::string config = std::string(VWE_VO_SOURCE_DIR) + "/config/";
