@@ -327,8 +327,9 @@ YAML::Node loadConfigTree(const std::string& path, int depth) {
   }
   if (!root["include"]) return root;
   if (depth >= 8) throw std::runtime_error(path + ": includes nest deeper than 8 files (a cycle?)");
-  std::string included = root["include"].as<std::string>();
-  if (included.empty()) throw std::runtime_error(path + ": include names no file");
+  if (!root["include"].IsScalar() || root["include"].Scalar().empty())
+    throw std::runtime_error(path + ": include must name a file");
+  std::string included = root["include"].Scalar();
   if (included[0] != '/') included = folderOf(path) + "/" + included;
   std::error_code ec;
   if (!std::filesystem::is_regular_file(included, ec))

@@ -1115,6 +1115,14 @@ TEST(Backend, YamlIncludeLaysAFileOverTheOneItNamesSectionBySection) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("nowhere.yaml"), std::string::npos) << e.what();
   }
+  // So is an include that is not one file name.
+  std::ofstream(dir + "/list.yaml") << "include: [a.yaml, b.yaml]\n";
+  try {
+    loadPipelineConfig(dir + "/list.yaml");
+    ADD_FAILURE() << "a list as include accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("list.yaml: include"), std::string::npos) << e.what();
+  }
   ASSERT_EQ(std::system(("rm -rf " + dir).c_str()), 0);
   // The shipped rigid car is car.yaml with the suspension's tilt off, and nothing else.
   const std::string config = std::string(VWE_VO_SOURCE_DIR) + "/config/";
