@@ -1099,30 +1099,20 @@ TEST(Backend, YamlIncludeLaysAFileOverTheOneItNamesSectionBySection) {
   EXPECT_EQ(cfg.frontend.window_duration_s, 0.25);
   EXPECT_EQ(cfg.camera.width, 346);  // sub/cam.yaml, found from base.yaml's folder
   EXPECT_TRUE(cfg.warnings.empty()) << cfg.warnings.front();
-  // A file that includes itself is refused with its name.
-  std::ofstream(dir + "/loop.yaml") << "include: loop.yaml\n";
-  try {
-    loadPipelineConfig(dir + "/loop.yaml");
-    ADD_FAILURE() << "an include cycle accepted";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("loop.yaml"), std::string::npos) << e.what();
-  }
-  // A missing included file is named.
-  std::ofstream(dir + "/missing.yaml") << "include: nowhere.yaml\n";
-  try {
-    loadPipelineConfig(dir + "/missing.yaml");
-    ADD_FAILURE() << "a missing include accepted";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("nowhere.yaml"), std::string::npos) << e.what();
-  }
-  // So is an include that is not one file name.
-  std::ofstream(dir + "/list.yaml") << "include: [a.yaml, b.yaml]\n";
-  try {
-    loadPipelineConfig(dir + "/list.yaml");
-    ADD_FAILURE() << "a list as include accepted";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("list.yaml: include"), std::string::npos) << e.what();
-  }
+  // Bad includes are refused with the file's name: a cycle, a missing file, a list of files.
+  auto expectRefused = [&](const std::string& file, const std::string& include,
+                           const std::string& named) {
+    std::ofstream(dir + "/" + file) << "include: " << include << "\n";
+    try {
+      loadPipelineConfig(dir + "/" + file);
+      ADD_FAILURE() << "include: " << include << " accepted";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(named), std::string::npos) << e.what();
+    }
+  };
+  expectRefused("loop.yaml", "loop.yaml", "loop.yaml");
+  expectRefused("missing.yaml", "nowhere.yaml", "nowhere.yaml");
+  expectRefused("list.yaml", "[a.yaml, b.yaml]", "list.yaml: include");
   ASSERT_EQ(std::system(("rm -rf " + dir).c_str()), 0);
   // The shipped rigid car is car.yaml with the suspension's tilt off, and nothing else.
   const std::string config = std::string(VWE_VO_SOURCE_DIR) + "/config/";
