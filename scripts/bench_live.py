@@ -22,15 +22,15 @@ import subprocess
 import sys
 import time
 
+from bench_pipeline import config_for  # the vehicle's configuration, as offline
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def launch_args(seq, nodelet):
     args = ["use_odom:=true", "nodelet:=%s" % ("true" if nodelet else "false")]
     if seq.startswith("street"):
-        # Only street_drive's car has a suspension (scripts/bench_pipeline.py).
-        suspended = seq.startswith("street_drive") and "_flat" not in seq
-        args.append("config:=" + os.path.join(ROOT, "config", "car.yaml" if suspended else "car_rigid.yaml"))
+        args.append("config:=" + config_for(seq))
     return args
 
 
