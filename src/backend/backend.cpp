@@ -117,7 +117,8 @@ double MultiVolumeObjective::evaluate(const Eigen::VectorXd& params, Eigen::Vect
   if (n > 0) {  // (the priors' tests have no volumes and no pool)
     objectives_->run(n, [&](int i, VweObjective& objective) {
       const BackendVolume& v = volumes_[size_t(i)];
-      const BSplineCameraModel model(spline_, T_base_cam_, v.t_ref_ns);
+      BSplineCameraModel model(spline_, T_base_cam_, v.t_ref_ns);
+      if (tilt_) model.setTilt(tilt_);
       contrasts_[size_t(i)] =
           objective.evaluate(v.events, model, gradient ? &full_gradients_[size_t(i)] : nullptr)
               .contrast;
@@ -724,8 +725,13 @@ void Backend::refine(int64_t t_new_ns) {
   if (volumes.empty()) return;
   stats_.volumes += volumes.size();
 
+  // With the tilt from the accelerations in the pose, the volumes see the camera tilted as well
+  // (the IMU's tilt stays out of them).
+  const int64_t tilt_from = volumes.front().t_ref_ns - secToNs(options_.tau2_s),
+                tilt_to = volumes.back().t_ref_ns + secToNs(options_.tau2_s);
   MultiVolumeObjective objective(spline_, T_base_cam_, first_free, std::move(volumes),
                                  &objectives_);
+  if (tiltInPose() && !imu_) objective.setTilt(accelerationTiltTable(tilt_from, tilt_to));
   const Eigen::VectorXd params0 = objective.freeParams();
   // With the gradient: the solver's first evaluation, at params0, is then already done.
   Eigen::VectorXd g0;

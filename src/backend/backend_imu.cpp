@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
+#include <vector>
 
 namespace vwe_vo {
 
@@ -79,6 +81,23 @@ Tilt Backend::accelerationTiltAt(int64_t t_ns) const {
   tilt.pitch = -options_.pitch_per_g_deg / kDegPerRad * m.dv / kGravity;
   tilt.roll = options_.roll_per_g_deg / kDegPerRad * m.v * m.omega / kGravity;
   return tilt;
+}
+
+std::function<Mat3(int64_t)> Backend::accelerationTiltTable(int64_t t0_ns, int64_t t1_ns) const {
+  constexpr int64_t kStep_ns = 10000000;
+  auto table = std::make_shared<std::vector<Tilt>>();
+  for (int64_t t = t0_ns; t < t1_ns + kStep_ns; t += kStep_ns)
+    table->push_back(accelerationTiltAt(t));
+  return [table, t0_ns](int64_t t_ns) {
+    const double x =
+        std::clamp(double(t_ns - t0_ns) / double(kStep_ns), 0.0, double(table->size() - 1));
+    const size_t i = std::min(size_t(x), table->size() - 1), j = std::min(i + 1, table->size() - 1);
+    const double w = x - double(i);
+    Tilt tilt;
+    tilt.pitch = (1 - w) * (*table)[i].pitch + w * (*table)[j].pitch;
+    tilt.roll = (1 - w) * (*table)[i].roll + w * (*table)[j].roll;
+    return tilt.rotation();
+  };
 }
 
 namespace {

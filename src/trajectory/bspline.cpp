@@ -602,7 +602,29 @@ PlanarLocalJacobian planarLocalJacobian(const Mat3& R_V, const Pose3& T_base_cam
   j.dt_dy = R_cb.col(1);
   return j;
 }
+
+// The same for T_Cr_Ct = A^-1 T_Vr_Vt B (two mounts): dR_C = R_A^T [z]x R_V R_B d psi,
+// dp_C = R_A^T ([z]x R_V p_B d psi + (dx, dy, 0)).
+PlanarLocalJacobian planarLocalJacobian(const Mat3& R_V, const Pose3& A, const Pose3& B) {
+  const Mat3 R_at = A.linear().transpose();
+  const Mat3 zR_V = skew(Vec3::UnitZ()) * R_V;
+  PlanarLocalJacobian j;
+  j.dR_dpsi = R_at * zR_V * B.linear();
+  j.dt_dpsi = R_at * (zR_V * B.translation());
+  j.dt_dx = R_at.col(0);
+  j.dt_dy = R_at.col(1);
+  return j;
+}
 }  // namespace
+
+void BSplineCameraModel::tiltedMounts(int64_t t_ns, Pose3* A, Pose3* B) const {
+  *A = T_base_cam_;
+  *B = T_base_cam_;
+  A->linear() = tilt_(t_ref_ns_) * T_base_cam_.linear();
+  A->translation() = tilt_(t_ref_ns_) * T_base_cam_.translation();
+  B->linear() = tilt_(t_ns) * T_base_cam_.linear();
+  B->translation() = tilt_(t_ns) * T_base_cam_.translation();
+}
 
 Pose3 BSplineCameraModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
   Reference fresh;
@@ -639,11 +661,19 @@ Pose3 BSplineCameraModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
       a[q] -= ref->jac.dpsi[s];
       b[q] -= R_rT * ref->jac.dp[s] + ref->jac.dpsi[s] * J_p_rel;
     }
-    const PlanarLocalJacobian lj = planarLocalJacobian(R_V, T_base_cam_);
+    Pose3 A, B;
+    if (tilt_) tiltedMounts(t_ns, &A, &B);
+    const PlanarLocalJacobian lj =
+        tilt_ ? planarLocalJacobian(R_V, A, B) : planarLocalJacobian(R_V, T_base_cam_);
     jac->clear();
     for (int s = 0; s < n; ++s)
       jac->add(index[s], a[s] * lj.dR_dpsi,
                a[s] * lj.dt_dpsi + lj.dt_dx * b[s].x() + lj.dt_dy * b[s].y());
+  }
+  if (tilt_) {
+    Pose3 A, B;
+    tiltedMounts(t_ns, &A, &B);
+    return Pose3(A.inverse(Eigen::Isometry) * T_Vr_Vt * B);
   }
   return vehicleToCamera(T_Vr_Vt, T_base_cam_);
 }
@@ -653,8 +683,15 @@ Pose3 BSplineCameraModel::T_Cr_CtPlanar(int64_t t_ns, PlanarLocalJacobian* jac) 
   double dpsi = 0.0;
   const Vec2 p_rel = relativePose(reference(&fresh), t_ns, &dpsi, nullptr);
   const Mat3 R_V = rotZ(dpsi);
+  const Pose3 T_V = makePose(R_V, Vec3(p_rel.x(), p_rel.y(), 0.0));
+  if (tilt_) {
+    Pose3 A, B;
+    tiltedMounts(t_ns, &A, &B);
+    if (jac) *jac = planarLocalJacobian(R_V, A, B);
+    return Pose3(A.inverse(Eigen::Isometry) * T_V * B);
+  }
   if (jac) *jac = planarLocalJacobian(R_V, T_base_cam_);
-  return vehicleToCamera(makePose(R_V, Vec3(p_rel.x(), p_rel.y(), 0.0)), T_base_cam_);
+  return vehicleToCamera(T_V, T_base_cam_);
 }
 
 void BSplineCameraModel::addPlanarGradient(const std::vector<int64_t>& t_ns,

@@ -318,8 +318,16 @@ TEST(Backend, PlanarJacobianGivesTheGradientOfTheFullPoseJacobian) {
   for (const std::vector<BSpline::Interval>& still :
        {std::vector<BSpline::Interval>{}, std::vector<BSpline::Interval>{{1.0, 1.4}, {2.0, 2.3}}}) {
     spline->setStandstills(still);
-    for (double u_ref : {0.9, 1.2, 2.5}) {
-      const BSplineCameraModel model(spline, testExtrinsics(), kEpoch + secToNs(u_ref));
+    for (double u_ref : {0.9, 1.2, 2.5, -1.2}) {
+      // (negative: at |u_ref| with the body tilted, pitch and roll swinging by ~1 deg)
+      BSplineCameraModel model(spline, testExtrinsics(), kEpoch + secToNs(std::abs(u_ref)));
+      if (u_ref < 0)
+        model.setTilt([](int64_t t) {
+          const double s = nsToSec(t - kEpoch);
+          return (Eigen::AngleAxisd(0.02 * std::sin(2.0 * s), Vec3::UnitY()) *
+                  Eigen::AngleAxisd(0.015 * std::cos(3.0 * s), Vec3::UnitX()))
+              .toRotationMatrix();
+        });
       ASSERT_TRUE(model.hasPlanarJacobian());
       Eigen::VectorXd g_planar, g_full;
       double f_planar = 0, f_full = 0;

@@ -311,12 +311,33 @@ TEST(BSpline, PoseJacobiansMatchFiniteDifferences) {
   }
 }
 
-TEST(BSpline, CameraModelJacobianMatchesFiniteDifferences) {
+/// A body tilt that varies with time: pitch 1.5 deg and roll 1 deg, swinging.
+static Mat3 swingingTilt(int64_t t_ns) {
+  const double t = nsToSec(t_ns - kEpoch);
+  return (Eigen::AngleAxisd(0.026 * std::sin(2.0 * t), Vec3::UnitY()) *
+          Eigen::AngleAxisd(0.017 * std::cos(3.0 * t), Vec3::UnitX()))
+      .toRotationMatrix();
+}
+
+class BSplineCameraModelTilt : public ::testing::TestWithParam<bool> {};
+
+TEST_P(BSplineCameraModelTilt, JacobianMatchesFiniteDifferences) {
+  // Planar, and with the body tilted about base_link (setTilt): the camera at
+  // T_odom_base(t) tilt(t) T_base_cam.
+  const bool tilted = GetParam();
   const Pose3 T_bc = testExtrinsics();
   const BSpline base = knownSpline();
   const int64_t t_ref = kEpoch + 1200000000LL;
   auto spline = std::make_shared<BSpline>(base);
-  const BSplineCameraModel model(spline, T_bc, t_ref);
+  BSplineCameraModel model(spline, T_bc, t_ref);
+  if (tilted) model.setTilt(swingingTilt);
+  auto mount = [&](int64_t t) {
+    Pose3 T = T_bc;
+    if (tilted)
+      T.linear() = swingingTilt(t) * T_bc.linear(),
+      T.translation() = swingingTilt(t) * T_bc.translation();
+    return T;
+  };
   EXPECT_EQ(model.numParams(), 2 * base.numControlPoints());
   EXPECT_EQ(model.referenceTime(), t_ref);
   EXPECT_TRUE(model.covers(kEpoch));
@@ -330,9 +351,12 @@ TEST(BSpline, CameraModelJacobianMatchesFiniteDifferences) {
     const Pose3 T = model.T_Cr_Ct(t, &jac);
     // The value is the relative camera pose.
     const Pose3 expected =
-        base.T_odom_cam(base.toSplineTime(t_ref), T_bc).inverse(Eigen::Isometry) *
-        base.T_odom_cam(base.toSplineTime(t), T_bc);
+        base.T_odom_cam(base.toSplineTime(t_ref), mount(t_ref)).inverse(Eigen::Isometry) *
+        base.T_odom_cam(base.toSplineTime(t), mount(t));
     EXPECT_TRUE(T.isApprox(expected, 1e-12));
+    // The planar path gives the same pose.
+    PlanarLocalJacobian lj;
+    EXPECT_TRUE(model.T_Cr_CtPlanar(t, &lj).isApprox(expected, 1e-12));
     for (int idx : jac.param_index) {
       EXPECT_GE(idx, 0);
       EXPECT_LT(idx, model.numParams());
@@ -359,6 +383,8 @@ TEST(BSpline, CameraModelJacobianMatchesFiniteDifferences) {
     }
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(PlanarAndTilted, BSplineCameraModelTilt, ::testing::Bool());
 
 TEST(BSpline, OptionsAndInputsAreValidated) {
   auto expectThrowNaming = [](const BSplineFitOptions& o, const std::string& field) {

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -102,9 +103,10 @@ struct BackendOptions {
   /// With /odom and without the IMU, the published poses (backend.tum, tf, /vwe/odom) carry the
   /// body's pitch and roll on its suspension as the response to the vehicle's own accelerations,
   /// from the refined trajectory: pitch = pitch_per_g * (-dv/dt) / g (braking dives the nose,
-  /// pitch > 0), roll = roll_per_g * v omega / g (the body leans out of a turn). The estimate
-  /// stays planar; only its output is tilted. A car's pitch gradient is a few deg/g
-  /// (config/car.yaml), a turtlebot's accelerations too small to matter (0: off) [deg/g].
+  /// pitch > 0), roll = roll_per_g * v omega / g (the body leans out of a turn). Each
+  /// refinement's volumes see the camera tilted the same way (held during the solve); the spline
+  /// stays planar. A car's pitch gradient is a few deg/g (config/car.yaml), a turtlebot's
+  /// accelerations too small to matter (0: off) [deg/g].
   double pitch_per_g_deg = 0.0;
   double roll_per_g_deg = 0.0;   // roll gradient (0: off) [deg/g]
   double output_rate_hz = 20.0;  // rate of the sampled trajectory (backend.tum) [Hz]
@@ -187,10 +189,14 @@ class MultiVolumeObjective {
   void setParams(const Eigen::VectorXd& params);
   /// Evaluations computed (not served from the kept results).
   size_t evaluations() const { return evaluations_; }
+  /// The body's tilt composed into every volume's camera poses (BSplineCameraModel::setTilt);
+  /// set before the first evaluation.
+  void setTilt(std::function<Mat3(int64_t)> tilt) { tilt_ = std::move(tilt); }
 
  private:
   std::shared_ptr<BSpline> spline_;
   Pose3 T_base_cam_;
+  std::function<Mat3(int64_t)> tilt_;
   int first_free_;
   std::vector<BackendVolume> volumes_;
   VweObjectivePool* objectives_;
@@ -466,6 +472,9 @@ class Backend {
   /// The span of that central difference: at least 0.1 s and one arc. The arcs' speeds are
   /// constant per window; a shorter difference across their steps gives spikes of acceleration.
   int64_t accelerationSpan_ns() const;
+  /// accelerationTiltAt over [t0, t1] from the trajectory as it is now, tabulated every 10 ms and
+  /// interpolated: the tilt a refinement's volumes hold while the solver moves the spline.
+  std::function<Mat3(int64_t)> accelerationTiltTable(int64_t t0_ns, int64_t t1_ns) const;
 
   BackendOptions options_;
   bool speeds_measured_ = true;

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -200,6 +201,10 @@ class BSplineCameraModel : public TrajectoryModel {
 
   const BSpline& spline() const { return *spline_; }
   const Pose3& T_base_cam() const { return T_base_cam_; }
+  /// The body's tilt about base_link (a rotation) at a time: the camera then sits at
+  /// T_odom_base(t) * tilt(t) * T_base_cam, so T_Cr_Ct = (tilt(t_ref) T_base_cam)^-1 T_Vr_Vt
+  /// (tilt(t) T_base_cam). Held as given (no derivative); empty: no tilt.
+  void setTilt(std::function<Mat3(int64_t)> tilt) { tilt_ = std::move(tilt); }
 
  private:
   struct Reference {
@@ -216,8 +221,12 @@ class BSplineCameraModel : public TrajectoryModel {
   Vec2 relativePose(const Reference& ref, int64_t t_ns, double* dpsi,
                     PlanarPoseJacobian* jac_t) const;
 
+  /// The camera's mount at t_ref (*A) and at t (*B), with the tilt.
+  void tiltedMounts(int64_t t_ns, Pose3* A, Pose3* B) const;
+
   std::shared_ptr<const BSpline> spline_;
   Pose3 T_base_cam_;
+  std::function<Mat3(int64_t)> tilt_;
   int64_t t_ref_ns_;
   Reference ref_;  // cached at construction
 };
