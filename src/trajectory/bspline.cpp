@@ -617,13 +617,14 @@ PlanarLocalJacobian planarLocalJacobian(const Mat3& R_V, const Pose3& A, const P
 }
 }  // namespace
 
-void BSplineCameraModel::tiltedMounts(int64_t t_ns, Pose3* A, Pose3* B) const {
-  *A = T_base_cam_;
-  *B = T_base_cam_;
-  A->linear() = tilt_(t_ref_ns_) * T_base_cam_.linear();
-  A->translation() = tilt_(t_ref_ns_) * T_base_cam_.translation();
-  B->linear() = tilt_(t_ns) * T_base_cam_.linear();
-  B->translation() = tilt_(t_ns) * T_base_cam_.translation();
+void BSplineCameraModel::setTilt(std::function<Mat3(int64_t)> tilt) {
+  tilt_ = std::move(tilt);
+  if (tilt_) mount_ref_ = tiltedMount(t_ref_ns_);
+}
+
+Pose3 BSplineCameraModel::tiltedMount(int64_t t_ns) const {
+  const Mat3 R = tilt_(t_ns);
+  return makePose(R * T_base_cam_.linear(), R * T_base_cam_.translation());
 }
 
 Pose3 BSplineCameraModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
@@ -661,20 +662,14 @@ Pose3 BSplineCameraModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
       a[q] -= ref->jac.dpsi[s];
       b[q] -= R_rT * ref->jac.dp[s] + ref->jac.dpsi[s] * J_p_rel;
     }
-    Pose3 A, B;
-    if (tilt_) tiltedMounts(t_ns, &A, &B);
-    const PlanarLocalJacobian lj =
-        tilt_ ? planarLocalJacobian(R_V, A, B) : planarLocalJacobian(R_V, T_base_cam_);
+    const PlanarLocalJacobian lj = tilt_ ? planarLocalJacobian(R_V, mount_ref_, tiltedMount(t_ns))
+                                         : planarLocalJacobian(R_V, T_base_cam_);
     jac->clear();
     for (int s = 0; s < n; ++s)
       jac->add(index[s], a[s] * lj.dR_dpsi,
                a[s] * lj.dt_dpsi + lj.dt_dx * b[s].x() + lj.dt_dy * b[s].y());
   }
-  if (tilt_) {
-    Pose3 A, B;
-    tiltedMounts(t_ns, &A, &B);
-    return Pose3(A.inverse(Eigen::Isometry) * T_Vr_Vt * B);
-  }
+  if (tilt_) return Pose3(mount_ref_.inverse(Eigen::Isometry) * T_Vr_Vt * tiltedMount(t_ns));
   return vehicleToCamera(T_Vr_Vt, T_base_cam_);
 }
 
@@ -685,10 +680,9 @@ Pose3 BSplineCameraModel::T_Cr_CtPlanar(int64_t t_ns, PlanarLocalJacobian* jac) 
   const Mat3 R_V = rotZ(dpsi);
   const Pose3 T_V = makePose(R_V, Vec3(p_rel.x(), p_rel.y(), 0.0));
   if (tilt_) {
-    Pose3 A, B;
-    tiltedMounts(t_ns, &A, &B);
-    if (jac) *jac = planarLocalJacobian(R_V, A, B);
-    return Pose3(A.inverse(Eigen::Isometry) * T_V * B);
+    const Pose3 B = tiltedMount(t_ns);
+    if (jac) *jac = planarLocalJacobian(R_V, mount_ref_, B);
+    return Pose3(mount_ref_.inverse(Eigen::Isometry) * T_V * B);
   }
   if (jac) *jac = planarLocalJacobian(R_V, T_base_cam_);
   return vehicleToCamera(T_V, T_base_cam_);

@@ -204,7 +204,7 @@ class BSplineCameraModel : public TrajectoryModel {
   /// The body's tilt about base_link (a rotation) at a time: the camera then sits at
   /// T_odom_base(t) * tilt(t) * T_base_cam, so T_Cr_Ct = (tilt(t_ref) T_base_cam)^-1 T_Vr_Vt
   /// (tilt(t) T_base_cam). Held as given (no derivative); empty: no tilt.
-  void setTilt(std::function<Mat3(int64_t)> tilt) { tilt_ = std::move(tilt); }
+  void setTilt(std::function<Mat3(int64_t)> tilt);
 
  private:
   struct Reference {
@@ -221,14 +221,15 @@ class BSplineCameraModel : public TrajectoryModel {
   Vec2 relativePose(const Reference& ref, int64_t t_ns, double* dpsi,
                     PlanarPoseJacobian* jac_t) const;
 
-  /// The camera's mount at t_ref (*A) and at t (*B), with the tilt.
-  void tiltedMounts(int64_t t_ns, Pose3* A, Pose3* B) const;
+  /// The camera's mount at t with the tilt (at t_ref: mount_ref_).
+  Pose3 tiltedMount(int64_t t_ns) const;
 
   std::shared_ptr<const BSpline> spline_;
   Pose3 T_base_cam_;
   std::function<Mat3(int64_t)> tilt_;
   int64_t t_ref_ns_;
-  Reference ref_;  // cached at construction
+  Pose3 mount_ref_;  // tiltedMount(t_ref), set by setTilt
+  Reference ref_;    // cached at construction
 };
 
 }  // namespace vwe_vo
