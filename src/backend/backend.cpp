@@ -731,7 +731,7 @@ void Backend::refine(int64_t t_new_ns) {
                 tilt_to = volumes.back().t_ref_ns + secToNs(options_.tau2_s);
   MultiVolumeObjective objective(spline_, T_base_cam_, first_free, std::move(volumes),
                                  &objectives_);
-  if (tiltInPose() && !imu_) objective.setTilt(accelerationTiltTable(tilt_from, tilt_to));
+  if (tiltInPose() && !imu_) objective.setTilt(tiltTable(tilt_from, tilt_to));
   const Eigen::VectorXd params0 = objective.freeParams();
   // With the gradient: the solver's first evaluation, at params0, is then already done.
   Eigen::VectorXd g0;

@@ -83,21 +83,11 @@ Tilt Backend::accelerationTiltAt(int64_t t_ns) const {
   return tilt;
 }
 
-std::function<Mat3(int64_t)> Backend::accelerationTiltTable(int64_t t0_ns, int64_t t1_ns) const {
-  constexpr int64_t kStep_ns = 10000000;
-  auto table = std::make_shared<std::vector<Tilt>>();
-  for (int64_t t = t0_ns; t < t1_ns + kStep_ns; t += kStep_ns)
-    table->push_back(accelerationTiltAt(t));
-  return [table, t0_ns](int64_t t_ns) {
-    const double x =
-        std::clamp(double(t_ns - t0_ns) / double(kStep_ns), 0.0, double(table->size() - 1));
-    const size_t i = std::min(size_t(x), table->size() - 1), j = std::min(i + 1, table->size() - 1);
-    const double w = x - double(i);
-    Tilt tilt;
-    tilt.pitch = (1 - w) * (*table)[i].pitch + w * (*table)[j].pitch;
-    tilt.roll = (1 - w) * (*table)[i].roll + w * (*table)[j].roll;
-    return tilt.rotation();
-  };
+std::function<Mat3(int64_t)> Backend::tiltTable(int64_t t0_ns, int64_t t1_ns) const {
+  constexpr int64_t kStep_ns = 10000000;  // the suspension's motion is slower than 100 Hz
+  auto table = std::make_shared<TiltHistory>(kStep_ns, t1_ns - t0_ns + 2 * kStep_ns);
+  for (int64_t t = t0_ns; t < t1_ns + kStep_ns; t += kStep_ns) table->add(t, tiltAt(t));
+  return [table](int64_t t_ns) { return table->at(t_ns).rotation(); };
 }
 
 namespace {
@@ -156,7 +146,9 @@ void Backend::advanceImu(bool to_newest) {
       m.motion.omega = eulerYawRate(s.gyro - bias, tilt_before.roll, tilt_before.pitch);
     }
     m.attitude.add(s, (t0 >= 0 && s.t_ns >= t0) ? m.motion : VehicleMotion());
-    m.tilts.add(s.t_ns, m.attitude.tilt());
+    // Until the filter has its first tilt the history stays empty; it then holds that tilt
+    // back over the samples that gave it.
+    if (m.attitude.initialised()) m.tilts.add(s.t_ns, m.attitude.tilt());
   }
   const int64_t keep_ns = secToNs(options_.window_s + options_.update_interval_s + 1.0);
   while (!m.yaw_rates.empty() && m.yaw_rates.front().t_ns < newest_arc_ns_ - keep_ns)

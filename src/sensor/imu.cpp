@@ -80,7 +80,9 @@ void AttitudeFilter::reset() {
   R_.setIdentity();
   w_lp_.setZero();
   g_init_sum_.setZero();
+  init_samples_ = 0;
   t_start_ns_ = -1;
+  t_first_tilt_ns_ = -1;
   const double bz = bias_.z();
   bias_.setZero();
   bias_.z() = bz;
@@ -115,16 +117,23 @@ void AttitudeFilter::add(const ImuSample& s, const VehicleMotion& m) {
   const Vec3 g_meas = s.accel - a_body;  // = R^T (0, 0, g)
   const double g = options_.gravity_mps2;
   if (!initialised_) {
-    if (t_start_ns_ < 0 || s.t_ns < t_start_ns_) t_start_ns_ = s.t_ns, g_init_sum_.setZero();
+    // dw is 0 here (w_lp_ = w): over the window, the mean of the lever arm's dw x r is the
+    // change of w over its length, which the first tilt subtracts from the mean specific force.
+    if (t_start_ns_ < 0 || s.t_ns < t_start_ns_)
+      t_start_ns_ = s.t_ns, g_init_sum_.setZero(), init_samples_ = 0, w_init_first_ = w;
     g_init_sum_ += g_meas;
+    ++init_samples_;
     t_ns_ = s.t_ns;
-    if (dtSec(s.t_ns, t_start_ns_) < kInitWindow_s) return;
-    const Vec3 f = g_init_sum_.normalized();
+    const double window = dtSec(s.t_ns, t_start_ns_);
+    if (window < kInitWindow_s) return;
+    const Vec3 dw_mean = (w - w_init_first_) / window;
+    const Vec3 f = (g_init_sum_ / double(init_samples_) - dw_mean.cross(lever_arm_)).normalized();
     Tilt t0;
     t0.roll = std::atan2(f.y(), f.z());
     t0.pitch = std::atan2(-f.x(), std::hypot(f.y(), f.z()));
     R_ = t0.rotation();
     initialised_ = true;
+    t_first_tilt_ns_ = s.t_ns;
     return;
   }
   double dt = dtSec(s.t_ns, t_ns_);
@@ -141,10 +150,11 @@ void AttitudeFilter::add(const ImuSample& s, const VehicleMotion& m) {
   } else {
     ++stats_.corrections_skipped;
   }
-  // Both time constants grow with the time since the start: the proportional one from a quarter
-  // of attitude_time_constant_s, the integral one from 4 times that (critically damped) up to
-  // attitude_bias_time_constant_s.
-  const double elapsed = dtSec(s.t_ns, t_start_ns_), tau_final = options_.attitude_time_constant_s;
+  // Both time constants grow with the time since the first tilt: the proportional one from a
+  // quarter of attitude_time_constant_s, the integral one from 4 times that (critically damped) up
+  // to attitude_bias_time_constant_s.
+  const double elapsed = dtSec(s.t_ns, t_first_tilt_ns_),
+               tau_final = options_.attitude_time_constant_s;
   const double tau = std::clamp(0.25 * elapsed, 0.25 * tau_final, tau_final);
   const double kp = 1.0 / tau;
   const double tau_b =

@@ -472,9 +472,9 @@ class Backend {
   /// The span of that central difference: at least 0.1 s and one arc. The arcs' speeds are
   /// constant per window; a shorter difference across their steps gives spikes of acceleration.
   int64_t accelerationSpan_ns() const;
-  /// accelerationTiltAt over [t0, t1] from the trajectory as it is now, tabulated every 10 ms and
-  /// interpolated: the tilt a refinement's volumes hold while the solver moves the spline.
-  std::function<Mat3(int64_t)> accelerationTiltTable(int64_t t0_ns, int64_t t1_ns) const;
+  /// tiltAt over [t0, t1] from the trajectory as it is now, in a TiltHistory every 10 ms: the tilt
+  /// a refinement's volumes hold while the solver moves the spline.
+  std::function<Mat3(int64_t)> tiltTable(int64_t t0_ns, int64_t t1_ns) const;
 
   BackendOptions options_;
   bool speeds_measured_ = true;

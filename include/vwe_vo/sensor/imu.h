@@ -92,15 +92,18 @@ struct AttitudeStats {
 /// gyro bias with an integral gain 1 / (attitude_time_constant_s * attitude_bias_time_constant_s).
 /// The z bias (unobservable from gravity on level ground) is the back-end's (setYawBias). Yaw is
 /// integrated but unused. The tilt starts from the mean specific force of the first
-/// kInitWindow_s (one 1 kHz sample of an MPU-6150 class accelerometer is 0.7 deg off), and both
-/// time constants grow with the time since then: the proportional one from a quarter of
-/// attitude_time_constant_s to it (over 4 of them), the integral's from 4 times the proportional
-/// one (critically damped) to attitude_bias_time_constant_s, so an unknown bias stops pulling
-/// the tilt off within seconds instead of tens of seconds.
+/// kInitWindow_s, the lever arm's mean dw x r (the change of the gyro over the window) removed: a
+/// window as long as a car's slowest ride period (1-1.5 Hz, Gillespie, Fundamentals of Vehicle
+/// Dynamics, ch. 5), whose pitching moves an IMU 1.4 m above the axle by tenths of m/s^2, and long
+/// against the accelerometer's noise (one 1 kHz sample of an MPU-6150 class accelerometer is 0.7
+/// deg off). Both time constants grow with the time since that first tilt: the proportional one
+/// from a quarter of attitude_time_constant_s to it (over 4 of them), the integral's from 4 times
+/// the proportional one (critically damped) to attitude_bias_time_constant_s, so an unknown bias
+/// stops pulling the tilt off within seconds instead of tens of seconds.
 class AttitudeFilter {
  public:
   static constexpr double kRateFilter_s = 0.05;  // low-pass of the gyro for dw [s]
-  static constexpr double kInitWindow_s = 0.1;   // specific force averaged for the first tilt [s]
+  static constexpr double kInitWindow_s = 1.0;   // specific force averaged for the first tilt [s]
   /// lever_arm: the IMU's position in base_link [m].
   AttitudeFilter(const ImuFusionOptions& options, const Vec3& lever_arm);
   /// One sample in base_link (rotateImuSample), in time order, with the vehicle's motion then.
@@ -121,9 +124,12 @@ class AttitudeFilter {
   int64_t t_ns_ = 0;
   Mat3 R_ = Mat3::Identity();  // R_odom_base (yaw integrated, unused)
   Vec3 bias_ = Vec3::Zero();
-  Vec3 w_lp_ = Vec3::Zero();        // low-passed gyro (angular acceleration for the lever arm)
-  Vec3 g_init_sum_ = Vec3::Zero();  // specific force summed over the first kInitWindow_s
-  int64_t t_start_ns_ = -1;         // first sample
+  Vec3 w_lp_ = Vec3::Zero();          // low-passed gyro (angular acceleration for the lever arm)
+  Vec3 g_init_sum_ = Vec3::Zero();    // specific force summed over the first kInitWindow_s
+  int init_samples_ = 0;              // samples in g_init_sum_
+  Vec3 w_init_first_ = Vec3::Zero();  // gyro at the window's first sample
+  int64_t t_start_ns_ = -1;           // first sample
+  int64_t t_first_tilt_ns_ = -1;      // end of the first kInitWindow_s: the gains' schedule starts
   AttitudeStats stats_;
 };
 
