@@ -589,21 +589,8 @@ Vec2 BSplineCameraModel::relativePose(const Reference& ref, int64_t t_ns, double
 }
 
 namespace {
-// d T_Cr_Ct / d(psi, x, y) of T_Vr_Vt with heading R_V: dR_C = R_cb [z]x R_V R_bc d psi,
-// dp_C = R_cb ([z]x R_V p_bc d psi + (dx, dy, 0)).
-PlanarLocalJacobian planarLocalJacobian(const Mat3& R_V, const Pose3& T_base_cam) {
-  const Mat3 R_bc = T_base_cam.linear();
-  const Mat3 R_cb = R_bc.transpose();
-  const Mat3 zR_V = skew(Vec3::UnitZ()) * R_V;
-  PlanarLocalJacobian j;
-  j.dR_dpsi = R_cb * zR_V * R_bc;
-  j.dt_dpsi = R_cb * (zR_V * T_base_cam.translation());
-  j.dt_dx = R_cb.col(0);
-  j.dt_dy = R_cb.col(1);
-  return j;
-}
-
-// The same for T_Cr_Ct = A^-1 T_Vr_Vt B (two mounts): dR_C = R_A^T [z]x R_V R_B d psi,
+// d T_Cr_Ct / d(psi, x, y) of T_Cr_Ct = A^-1 T_Vr_Vt B with heading R_V (A, B: the camera's mounts
+// at t_ref and t; both T_base_cam without a tilt): dR_C = R_A^T [z]x R_V R_B d psi,
 // dp_C = R_A^T ([z]x R_V p_B d psi + (dx, dy, 0)).
 PlanarLocalJacobian planarLocalJacobian(const Mat3& R_V, const Pose3& A, const Pose3& B) {
   const Mat3 R_at = A.linear().transpose();
@@ -663,7 +650,7 @@ Pose3 BSplineCameraModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
       b[q] -= R_rT * ref->jac.dp[s] + ref->jac.dpsi[s] * J_p_rel;
     }
     const PlanarLocalJacobian lj = tilt_ ? planarLocalJacobian(R_V, mount_ref_, tiltedMount(t_ns))
-                                         : planarLocalJacobian(R_V, T_base_cam_);
+                                         : planarLocalJacobian(R_V, T_base_cam_, T_base_cam_);
     jac->clear();
     for (int s = 0; s < n; ++s)
       jac->add(index[s], a[s] * lj.dR_dpsi,
@@ -684,7 +671,7 @@ Pose3 BSplineCameraModel::T_Cr_CtPlanar(int64_t t_ns, PlanarLocalJacobian* jac) 
     if (jac) *jac = planarLocalJacobian(R_V, mount_ref_, B);
     return Pose3(mount_ref_.inverse(Eigen::Isometry) * T_V * B);
   }
-  if (jac) *jac = planarLocalJacobian(R_V, T_base_cam_);
+  if (jac) *jac = planarLocalJacobian(R_V, T_base_cam_, T_base_cam_);
   return vehicleToCamera(T_V, T_base_cam_);
 }
 
