@@ -4,6 +4,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -309,10 +310,45 @@ YAML::Node overlaid(const YAML::Node& base, const YAML::Node& over) {
   return out;
 }
 
+/// The file that set each key of a configuration tree, by its path (section.key, section.sub.key).
+using KeyOrigins = std::map<std::string, std::string>;
+
+void recordOrigins(const YAML::Node& node, const std::string& prefix, const std::string& file,
+                   KeyOrigins* origins) {
+  if (!node.IsMap()) return;
+  for (const auto& kv : node) {
+    const std::string key = (prefix.empty() ? "" : prefix + ".") + kv.first.as<std::string>();
+    (*origins)[key] = file;
+    recordOrigins(kv.second, key, file, origins);
+  }
+}
+
+/// The file a message about a key is about: the message's first key path (its quoted key, or its
+/// first word), or the nearest section of it that a file set; else `fallback`.
+std::string originOf(const std::string& message, const KeyOrigins& origins,
+                     const std::string& fallback) {
+  std::string key;
+  const size_t quote = message.find('\'');
+  if (quote != std::string::npos && message.rfind("unknown ", 0) == 0) {
+    const size_t end = message.find('\'', quote + 1);
+    key = message.substr(quote + 1, end == std::string::npos ? std::string::npos : end - quote - 1);
+  } else {
+    key = message.substr(0, message.find_first_of(": "));
+  }
+  for (;;) {
+    const auto it = origins.find(key);
+    if (it != origins.end()) return it->second;
+    const size_t dot = key.rfind('.');
+    if (dot == std::string::npos) return fallback;
+    key.resize(dot);
+  }
+}
+
 /// A configuration file over the file it names as `include` (relative to its own folder; that
 /// file may include another): its keys replace the included file's, section by section. Each
-/// file's relative camera_calibration is resolved against that file's folder.
-YAML::Node loadConfigTree(const std::string& path, int depth) {
+/// file's relative camera_calibration is resolved against that file's folder. origins receives
+/// the file each key comes from.
+YAML::Node loadConfigTree(const std::string& path, int depth, KeyOrigins* origins) {
   YAML::Node root;
   try {
     root = YAML::LoadFile(path);
@@ -325,7 +361,10 @@ YAML::Node loadConfigTree(const std::string& path, int depth) {
     if (!calib.empty() && calib[0] != '/')
       root["camera_calibration"] = folderOf(path) + "/" + calib;
   }
-  if (!root["include"]) return root;
+  if (!root["include"]) {
+    recordOrigins(root, "", path, origins);
+    return root;
+  }
   if (depth >= 8) throw std::runtime_error(path + ": includes nest deeper than 8 files (a cycle?)");
   if (!root["include"].IsScalar() || root["include"].Scalar().empty())
     throw std::runtime_error(path + ": include must name a file");
@@ -335,7 +374,9 @@ YAML::Node loadConfigTree(const std::string& path, int depth) {
   if (!std::filesystem::is_regular_file(included, ec))
     throw std::runtime_error(path + ": include '" + included + "' is not a readable file");
   root.remove("include");
-  return overlaid(loadConfigTree(included, depth + 1), root);
+  const YAML::Node base = loadConfigTree(included, depth + 1, origins);
+  recordOrigins(root, "", path, origins);
+  return overlaid(base, root);
 }
 
 }  // namespace
@@ -404,14 +445,19 @@ PipelineConfig loadPipelineConfig(const std::string& path,
   std::string calib = default_calibration_path.empty() ? defaultConfigDir() + "/davis346.yaml"
                                                        : default_calibration_path;
   if (!path.empty()) {
-    const YAML::Node root = loadConfigTree(path, 0);
+    KeyOrigins origins;
+    const YAML::Node root = loadConfigTree(path, 0, &origins);
+    // Messages about a key name the file that set it (an included one, or this one).
+    auto located = [&](const std::string& message) {
+      return originOf(message, origins, path) + ": " + message;
+    };
     static const std::set<std::string> known = {
         "camera_calibration", "T_base_cam", "input", "frontend", "backend",
         "baseline",           "mapping",    "imu"};
     for (const auto& kv : root)
       if (!known.count(kv.first.as<std::string>()))
-        cfg.warnings.push_back(path + ": unknown top-level key '" + kv.first.as<std::string>() +
-                               "' ignored");
+        cfg.warnings.push_back(
+            located("unknown top-level key '" + kv.first.as<std::string>() + "' ignored"));
     if (root["camera_calibration"]) calib = root["camera_calibration"].as<std::string>();
     cfg.T_base_cam = loadTBaseCam(root, path, &cfg.warnings);
     std::vector<std::string> warnings;
@@ -423,9 +469,9 @@ PipelineConfig loadPipelineConfig(const std::string& path,
       loadOptions(root, "baseline", &cfg.baseline, &warnings);
       loadOptions(root, "imu", &cfg.imu, &warnings);
     } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(path + ": " + e.what());
+      throw std::invalid_argument(located(e.what()));
     }
-    for (const std::string& w : warnings) cfg.warnings.push_back(path + ": " + w);
+    for (const std::string& w : warnings) cfg.warnings.push_back(located(w));
   }
   // One timestamp rule: the stages' own guards (a second line behind the input's policy) agree with
   // it.

@@ -1121,6 +1121,32 @@ TEST(Backend, YamlIncludeLaysAFileOverTheOneItNamesSectionBySection) {
   expectRefused("loop.yaml", "loop.yaml", "loop.yaml");
   expectRefused("missing.yaml", "nowhere.yaml", "nowhere.yaml");
   expectRefused("list.yaml", "[a.yaml, b.yaml]", "list.yaml: include");
+  // Warnings and errors about a key name the file that set it, included or including.
+  std::ofstream(dir + "/sub/typo.yaml")
+      << "camera_calibration: cam.yaml\nbackend:\n  tau_1_s: 0.3\n  volume:\n    planes: 2\n";
+  std::ofstream(dir + "/typo_over.yaml")
+      << "include: sub/typo.yaml\nfrontend:\n  windw_s: 0.3\nbakend:\n  tau1_s: 0.3\n";
+  const PipelineConfig typos = loadPipelineConfig(dir + "/typo_over.yaml");
+  auto warned = [&](const std::string& expected) {
+    for (const std::string& w : typos.warnings)
+      if (w == expected) return true;
+    return false;
+  };
+  EXPECT_TRUE(warned(dir + "/sub/typo.yaml: unknown key 'backend.tau_1_s' ignored"));
+  EXPECT_TRUE(warned(dir + "/sub/typo.yaml: unknown key 'backend.volume.planes' ignored"));
+  EXPECT_TRUE(warned(dir + "/typo_over.yaml: unknown key 'frontend.windw_s' ignored"));
+  EXPECT_TRUE(warned(dir + "/typo_over.yaml: unknown top-level key 'bakend' ignored"));
+  EXPECT_EQ(typos.warnings.size(), 4u);
+  std::ofstream(dir + "/sub/bad.yaml")
+      << "camera_calibration: cam.yaml\nbackend:\n  tau1_s: -1.0\n";
+  std::ofstream(dir + "/bad_over.yaml") << "include: sub/bad.yaml\nbackend:\n  window_s: 2.0\n";
+  try {
+    loadPipelineConfig(dir + "/bad_over.yaml");
+    ADD_FAILURE() << "backend.tau1_s -1 accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(dir + "/sub/bad.yaml: backend.tau1_s", 0), 0u)
+        << e.what();
+  }
   ASSERT_EQ(std::system(("rm -rf " + dir).c_str()), 0);
   // The shipped rigid car is car.yaml with the suspension's tilt off, and nothing else.
   const std::string config = std::string(VWE_VO_SOURCE_DIR) + "/config/";
