@@ -19,6 +19,13 @@
 
 namespace vwe_vo {
 
+namespace {
+// The spline message's tilt samples: the newest 30 s (what the mapper still maps: its pending
+// events and the trajectory margin are a few seconds), every 20 ms (the output rate's step).
+constexpr double kTiltSpan_s = 30.0;
+constexpr double kTiltStep_s = 0.02;
+}  // namespace
+
 void BackendNodeOptions::validate() const {
   auto fail = [](const std::string& m) { throw std::invalid_argument("backend_node: " + m); };
   if (max_queue_events < 1) fail("~max_queue_events must be at least 1");
@@ -244,7 +251,17 @@ void BackendNode::publishRefinement(size_t merged) {
         merged + 1, driver_->stats().refinements_merged);
   if (!backend_->hasSpline()) return;
   const BSpline& spline = backend_->spline();
-  trajectory_pub_.publish(sharedMsg(splineToMsg(spline, backend_->firstFree(), frames::kOdom)));
+  SplineTrajectory trajectory = splineToMsg(spline, backend_->firstFree(), frames::kOdom);
+  if (backend_->tiltInPose()) {
+    // The tilt the published poses carry, over the part of the spline the mapper may still map:
+    // its live map then sees the camera as /vwe/odom and tf do.
+    const int64_t to = spline.epochNs() + secToNs(spline.validTo());
+    const int64_t from =
+        std::max(spline.epochNs() + secToNs(spline.validFrom()), to - secToNs(kTiltSpan_s));
+    for (int64_t t = from; t <= to; t += secToNs(kTiltStep_s))
+      addTiltToMsg(t, backend_->tiltAt(t), &trajectory);
+  }
+  trajectory_pub_.publish(sharedMsg(std::move(trajectory)));
   // The path: the refined spline, newest path_max_poses at the odometry rate.
   const Trajectory3 traj = backend_->sampleTrajectory(node_options_.odom_rate_hz);
   const size_t n = std::min(traj.size(), size_t(node_options_.path_max_poses));

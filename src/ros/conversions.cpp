@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 
 namespace vwe_vo {
@@ -260,6 +261,38 @@ SplineTrajectory splineToMsg(const BSpline& spline, int first_free, const std::s
   }
   m.min_speed = spline.minSpeed();
   return m;
+}
+
+void addTiltToMsg(int64_t t_ns, const Tilt& tilt, SplineTrajectory* msg) {
+  msg->tilt_t.push_back(dtSec(t_ns, toNs(msg->knot_epoch)));
+  msg->tilt_roll.push_back(tilt.roll);
+  msg->tilt_pitch.push_back(tilt.pitch);
+}
+
+TiltHistory tiltFromMsg(const SplineTrajectory& msg) {
+  auto fail = [](const std::string& m) { throw std::invalid_argument("SplineTrajectory: " + m); };
+  const size_t n = msg.tilt_t.size();
+  if (msg.tilt_roll.size() != n || msg.tilt_pitch.size() != n)
+    fail(std::to_string(n) + " tilt_t but " + std::to_string(msg.tilt_roll.size()) +
+         " tilt_roll and " + std::to_string(msg.tilt_pitch.size()) + " tilt_pitch");
+  TiltHistory history(1, std::numeric_limits<int64_t>::max() / 2);
+  const int64_t epoch = toNs(msg.knot_epoch);
+  int64_t previous = 0;
+  for (size_t k = 0; k < n; ++k) {
+    if (!std::isfinite(msg.tilt_t[k]) || !std::isfinite(msg.tilt_roll[k]) ||
+        !std::isfinite(msg.tilt_pitch[k]))
+      fail("tilt sample " + std::to_string(k) + " is not finite");
+    const int64_t t = epoch + secToNs(msg.tilt_t[k]);
+    if (k > 0 && t <= previous)
+      fail("tilt_t[" + std::to_string(k) + "] " + std::to_string(msg.tilt_t[k]) +
+           " s is not after the sample before");
+    Tilt tilt;
+    tilt.roll = msg.tilt_roll[k];
+    tilt.pitch = msg.tilt_pitch[k];
+    history.add(t, tilt);
+    previous = t;
+  }
+  return history;
 }
 
 BSpline splineFromMsg(const SplineTrajectory& msg) {

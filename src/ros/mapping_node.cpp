@@ -119,6 +119,7 @@ void MappingNode::trajectoryCallback(const SplineTrajectory::ConstPtr& msg) {
   Input input;
   try {
     input.spline = std::make_shared<const BSpline>(splineFromMsg(*msg));
+    if (!msg->tilt_t.empty()) input.tilt = std::make_shared<const TiltHistory>(tiltFromMsg(*msg));
   } catch (const std::invalid_argument& e) {
     input_.countRefused(InputKind::kTrajectory);
     const InputKindCounters c = input_.counters()[InputKind::kTrajectory];
@@ -159,7 +160,7 @@ void MappingNode::workerLoop() {
       // by max_pending_events), however many packets a busy worker finds queued.
       for (Input& input : inputs) {
         if (input.spline)
-          spline_ = std::move(input.spline);
+          spline_ = std::move(input.spline), tilt_ = std::move(input.tilt);
         else
           handleEvents(input.events, input.reset_why);
         mapCovered();
@@ -196,6 +197,7 @@ void MappingNode::handleEvents(const EventVector& events, const std::string& res
     mapper_->reset();
     map_->clear();
     spline_.reset();
+    tilt_.reset();
     map_changed_ = true;
     newest_event_ns_ = -1;
   }
@@ -224,10 +226,13 @@ void MappingNode::handleEvents(const EventVector& events, const std::string& res
 void MappingNode::mapCovered() {
   if (!spline_) return;
   const std::shared_ptr<const BSpline> spline = spline_;
+  const std::shared_ptr<const TiltHistory> tilt = tilt_;
   const Pose3 T_base_cam = T_base_cam_;
-  const auto pose = [&spline, &T_base_cam](int64_t t_ns, Pose3* T_odom_cam) {
+  const auto pose = [&spline, &tilt, &T_base_cam](int64_t t_ns, Pose3* T_odom_cam) {
     if (!spline->covers(t_ns)) return false;
-    *T_odom_cam = spline->T_odom_cam(spline->toSplineTime(t_ns), T_base_cam);
+    Pose3 T_odom_base = spline->T_odom_base(spline->toSplineTime(t_ns));
+    if (tilt) T_odom_base.linear() = T_odom_base.linear() * tilt->at(t_ns).rotation();
+    *T_odom_cam = T_odom_base * T_base_cam;
     return true;
   };
   // The end of the spline still moves with new data: only events before it are final.

@@ -36,6 +36,45 @@ TEST(Conversions, SplineRoundTripEvaluatesIdentically) {
   }
 }
 
+TEST(Conversions, SplineTiltSamplesRoundTrip) {
+  // The body's tilt rides along with the spline: samples relative to the knot epoch, linear between
+  // them and held outside; none for a planar body.
+  vwe_vo::SplineTrajectory msg = vwe_vo::splineToMsg(testSpline(), 0, "odom");
+  EXPECT_TRUE(vwe_vo::tiltFromMsg(msg).empty());
+  const int64_t t0 = vwe_vo::secToNs(100.5);
+  for (int k = 0; k < 5; ++k) {
+    vwe_vo::Tilt tilt;
+    tilt.roll = 0.01 * k;
+    tilt.pitch = -0.02 * k;
+    vwe_vo::addTiltToMsg(t0 + k * 20000000LL, tilt, &msg);
+  }
+  ASSERT_EQ(msg.tilt_t.size(), 5u);
+  EXPECT_DOUBLE_EQ(msg.tilt_t[1], 0.27);  // seconds since the epoch 100.25 s
+  const vwe_vo::TiltHistory tilts = vwe_vo::tiltFromMsg(msg);
+  EXPECT_NEAR(tilts.at(t0 + 30000000LL).roll, 0.015, 1e-12);  // halfway between samples 1 and 2
+  EXPECT_NEAR(tilts.at(t0 + 30000000LL).pitch, -0.03, 1e-12);
+  EXPECT_NEAR(tilts.at(t0 - vwe_vo::secToNs(1.0)).roll, 0.0, 1e-12);     // held before the first
+  EXPECT_NEAR(tilts.at(t0 + vwe_vo::secToNs(1.0)).pitch, -0.08, 1e-12);  // and after the last
+  const auto message = [](const vwe_vo::SplineTrajectory& m) -> std::string {
+    try {
+      vwe_vo::tiltFromMsg(m);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "no exception";
+  };
+  vwe_vo::SplineTrajectory m = msg;
+  m.tilt_pitch.pop_back();
+  EXPECT_NE(message(m).find("5 tilt_t but 5 tilt_roll and 4 tilt_pitch"), std::string::npos)
+      << message(m);
+  m = msg;
+  m.tilt_roll[2] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(message(m).find("tilt sample 2 is not finite"), std::string::npos) << message(m);
+  m = msg;
+  m.tilt_t[3] = m.tilt_t[2];
+  EXPECT_NE(message(m).find("tilt_t[3]"), std::string::npos) << message(m);
+}
+
 TEST(Conversions, SplineFromMsgNamesTheBadField) {
   const vwe_vo::SplineTrajectory good = vwe_vo::splineToMsg(testSpline(), 0, "odom");
   const auto message = [](const vwe_vo::SplineTrajectory& m) -> std::string {

@@ -94,6 +94,11 @@ ArcEstimate arcFromMsg(const AckermannArc& msg);
 SplineTrajectory splineToMsg(const BSpline& spline, int first_free, const std::string& frame_id);
 /// Throws std::invalid_argument naming what is inconsistent (sizes, knots, standstills).
 BSpline splineFromMsg(const SplineTrajectory& msg);
+/// Appends the body's tilt at t_ns to the message's tilt samples (times after the last sample).
+void addTiltToMsg(int64_t t_ns, const Tilt& tilt, SplineTrajectory* msg);
+/// The message's tilt samples (empty: none). Throws std::invalid_argument naming what is wrong:
+/// unequal sizes, non-finite values, times not increasing.
+TiltHistory tiltFromMsg(const SplineTrajectory& msg);
 
 /// PointCloud2 of x y z float32 + intensity float32 (= MapPoint::confidence), unorganised
 /// (height 1), little-endian; non-finite points are left out.

@@ -20,6 +20,7 @@
 #include "vwe_vo/ros/node_input.h"
 #include "vwe_vo/ros/process_priority.h"
 #include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sensor/imu.h"
 #include "vwe_vo/trajectory/bspline.h"
 
 namespace vwe_vo {
@@ -56,9 +57,10 @@ class MappingNode {
  private:
   /// One queued input, converted to core types by a callback.
   struct Input {
-    EventVector events;                     // event packets
-    std::string reset_why;                  // the input's timestamp policy resets before these
-    std::shared_ptr<const BSpline> spline;  // a trajectory (then events is empty)
+    EventVector events;                       // event packets
+    std::string reset_why;                    // the input's timestamp policy resets before these
+    std::shared_ptr<const BSpline> spline;    // a trajectory (then events is empty)
+    std::shared_ptr<const TiltHistory> tilt;  // its body's tilt (null: planar)
   };
 
   void readParameters();
@@ -90,7 +92,8 @@ class MappingNode {
   std::unique_ptr<CameraModel> camera_;
   std::unique_ptr<EmvsMapper> mapper_;
   std::unique_ptr<GlobalMap> map_;
-  std::shared_ptr<const BSpline> spline_;  // the trajectory in use
+  std::shared_ptr<const BSpline> spline_;    // the trajectory in use
+  std::shared_ptr<const TiltHistory> tilt_;  // its body's tilt (null: planar)
   int64_t newest_event_ns_ = -1;
   size_t resets_ = 0, keyframes_ = 0, keyframes_empty_ = 0;
   EmvsCounts counts_;  // summed over keyframes
