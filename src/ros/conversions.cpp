@@ -270,6 +270,7 @@ void addTiltToMsg(int64_t t_ns, const Tilt& tilt, SplineTrajectory* msg) {
 }
 
 TiltHistory tiltFromMsg(const SplineTrajectory& msg) {
+  constexpr double kMaxTiltOffset_s = 1e8;  // ~3 years: any stamp of a drive, and no overflow
   auto fail = [](const std::string& m) { throw std::invalid_argument("SplineTrajectory: " + m); };
   const size_t n = msg.tilt_t.size();
   if (msg.tilt_roll.size() != n || msg.tilt_pitch.size() != n)
@@ -282,6 +283,9 @@ TiltHistory tiltFromMsg(const SplineTrajectory& msg) {
     if (!std::isfinite(msg.tilt_t[k]) || !std::isfinite(msg.tilt_roll[k]) ||
         !std::isfinite(msg.tilt_pitch[k]))
       fail("tilt sample " + std::to_string(k) + " is not finite");
+    if (!(std::abs(msg.tilt_t[k]) <= kMaxTiltOffset_s))
+      fail("tilt_t[" + std::to_string(k) + "] " + std::to_string(msg.tilt_t[k]) +
+           " s is more than " + std::to_string(kMaxTiltOffset_s) + " s from the knot epoch");
     const int64_t t = epoch + secToNs(msg.tilt_t[k]);
     if (k > 0 && t <= previous)
       fail("tilt_t[" + std::to_string(k) + "] " + std::to_string(msg.tilt_t[k]) +

@@ -3,6 +3,7 @@
 // AckermannArc, the rest is the serialized message.
 #include <ros/serialization.h>
 
+#include <cmath>
 #include <cstring>
 
 #include "vwe_vo/ros/conversions.h"
@@ -72,13 +73,20 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       layout.array(8), layout.array(8), layout.array(8);
       layout.skip(8 + 8 + 4);  // valid_from, valid_to, first_free_control_point
       layout.array(8), layout.array(8);
-      layout.skip(8);  // min_speed
+      layout.skip(8);                                     // min_speed
+      layout.array(8), layout.array(8), layout.array(8);  // tilt_t, tilt_roll, tilt_pitch
       vwe_vo::SplineTrajectory msg;
       if (!layout.ok() || !deserialize(data, size, &msg)) return 0;
       const vwe_vo::BSpline spline = vwe_vo::splineFromMsg(msg);
-      // An accepted spline can be evaluated over its whole domain.
+      // An accepted spline can be evaluated over its whole domain, and so can accepted tilts.
       const double a = spline.validFrom(), b = spline.validTo();
       for (int i = 0; i <= 4; ++i) (void)spline.position(a + (b - a) * i / 4.0);
+      const vwe_vo::TiltHistory tilts = vwe_vo::tiltFromMsg(msg);
+      for (int i = 0; i <= 4; ++i) {
+        const vwe_vo::Tilt tilt =
+            tilts.at(spline.epochNs() + vwe_vo::secToNs(a + (b - a) * i / 4.0));
+        if (!std::isfinite(tilt.roll) || !std::isfinite(tilt.pitch)) __builtin_trap();
+      }
     } else {
       vwe_vo::AckermannArc msg;
       if (!deserialize(data, size, &msg)) return 0;

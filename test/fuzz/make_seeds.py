@@ -39,7 +39,8 @@ def spline():
     cy = [0.0] * n
     return (b"\1" + header() + struct.pack("<B", degree) + struct.pack("<II", 1, 0) + doubles(knots) +
             doubles(cx) + doubles(cy) + struct.pack("<IIIII", 1, 0, 1, 600000000, 2) + doubles([0.1]) +
-            doubles([0.2]))
+            doubles([0.2]) + struct.pack("<d", 0.0) + doubles([0.1, 0.3]) + doubles([0.01, 0.02]) +
+            doubles([0.0, -0.01]))
 
 
 def arc():

@@ -73,6 +73,9 @@ TEST(Conversions, SplineTiltSamplesRoundTrip) {
   m = msg;
   m.tilt_t[3] = m.tilt_t[2];
   EXPECT_NE(message(m).find("tilt_t[3]"), std::string::npos) << message(m);
+  m = msg;
+  m.tilt_t[4] = 1e191;  // would overflow the nanoseconds
+  EXPECT_NE(message(m).find("tilt_t[4]"), std::string::npos) << message(m);
 }
 
 TEST(Conversions, SplineFromMsgNamesTheBadField) {
