@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <string>
 
 #include "vwe_vo/ros/conversions.h"
 
@@ -15,6 +16,16 @@ vwe_vo::BSpline testSpline() {
                            Vec2(1.2, 0.9)};
   return vwe_vo::BSpline(3, vwe_vo::BSpline::clampedUniformKnots(3, 5, 0.0, 2.0), cps,
                          vwe_vo::secToNs(100.25));
+}
+/// The message of the std::invalid_argument convert() throws, or "no exception".
+template <typename F>
+std::string refusal(F&& convert) {
+  try {
+    convert();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "no exception";
 }
 }  // namespace
 
@@ -55,13 +66,8 @@ TEST(Conversions, SplineTiltSamplesRoundTrip) {
   EXPECT_NEAR(tilts.at(t0 + 30000000LL).pitch, -0.03, 1e-12);
   EXPECT_NEAR(tilts.at(t0 - vwe_vo::secToNs(1.0)).roll, 0.0, 1e-12);     // held before the first
   EXPECT_NEAR(tilts.at(t0 + vwe_vo::secToNs(1.0)).pitch, -0.08, 1e-12);  // and after the last
-  const auto message = [](const vwe_vo::SplineTrajectory& m) -> std::string {
-    try {
-      vwe_vo::tiltFromMsg(m);
-    } catch (const std::invalid_argument& e) {
-      return e.what();
-    }
-    return "no exception";
+  const auto message = [](const vwe_vo::SplineTrajectory& m) {
+    return refusal([&] { vwe_vo::tiltFromMsg(m); });
   };
   vwe_vo::SplineTrajectory m = msg;
   m.tilt_pitch.pop_back();
@@ -80,13 +86,8 @@ TEST(Conversions, SplineTiltSamplesRoundTrip) {
 
 TEST(Conversions, SplineFromMsgNamesTheBadField) {
   const vwe_vo::SplineTrajectory good = vwe_vo::splineToMsg(testSpline(), 0, "odom");
-  const auto message = [](const vwe_vo::SplineTrajectory& m) -> std::string {
-    try {
-      vwe_vo::splineFromMsg(m);
-    } catch (const std::invalid_argument& e) {
-      return e.what();
-    }
-    return "no exception";
+  const auto message = [](const vwe_vo::SplineTrajectory& m) {
+    return refusal([&] { vwe_vo::splineFromMsg(m); });
   };
   vwe_vo::SplineTrajectory m = good;
   m.degree = 0;

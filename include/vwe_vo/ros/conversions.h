@@ -97,7 +97,7 @@ BSpline splineFromMsg(const SplineTrajectory& msg);
 /// Appends the body's tilt at t_ns to the message's tilt samples (times after the last sample).
 void addTiltToMsg(int64_t t_ns, const Tilt& tilt, SplineTrajectory* msg);
 /// The message's tilt samples (empty: none). Throws std::invalid_argument naming what is wrong:
-/// unequal sizes, non-finite values, times not increasing.
+/// unequal sizes, non-finite values, times not increasing or more than 1e8 s from the epoch.
 TiltHistory tiltFromMsg(const SplineTrajectory& msg);
 
 /// PointCloud2 of x y z float32 + intensity float32 (= MapPoint::confidence), unorganised
