@@ -119,17 +119,19 @@ def over_starts(bin_dir, seq, starts, out_dir, use_odom, first=None, seed=None):
     `seed`: the event-subsampling seed (None: the configuration's)."""
     by_start = {}
     config = config_for(seq) if seed is None else seeded_config(config_for(seq), seed)
-    for start in starts:
-        if start == 0 and first is not None:
-            r = first
-        else:
-            run_dir = os.path.join(out_dir, "%s_%s_from%g%s" % (seq, "odom" if use_odom else "noodom", start,
-                                                                "" if seed is None else "_seed%d" % seed))
-            r = run(bin_dir, seq, config, run_dir, 1, ["--start", str(start)] if start else [], use_odom)
-        by_start["%g" % start] = {"yaw_rpe_rmse_deg_s": round(r["backend"]["yaw_rpe_rmse_deg_s"], 4),
-                                  "trans_dir_rmse_deg_s": round(r["backend"]["trans_dir_rmse_deg_s"], 4)}
-    if seed is not None:
-        os.unlink(config)
+    try:
+        for start in starts:
+            if start == 0 and first is not None:
+                r = first
+            else:
+                run_dir = os.path.join(out_dir, "%s_%s_from%g%s" % (seq, "odom" if use_odom else "noodom", start,
+                                                                    "" if seed is None else "_seed%d" % seed))
+                r = run(bin_dir, seq, config, run_dir, 1, ["--start", str(start)] if start else [], use_odom)
+            by_start["%g" % start] = {"yaw_rpe_rmse_deg_s": round(r["backend"]["yaw_rpe_rmse_deg_s"], 4),
+                                      "trans_dir_rmse_deg_s": round(r["backend"]["trans_dir_rmse_deg_s"], 4)}
+    finally:
+        if seed is not None:  # the temporary seeded copy, also when a run fails
+            os.unlink(config)
     mean = {k: round(statistics.mean(v[k] for v in by_start.values()), 4)
             for k in ("yaw_rpe_rmse_deg_s", "trans_dir_rmse_deg_s")}
     return {"by_start": by_start, "mean": mean}
