@@ -17,8 +17,11 @@ without /odom (nominal speed), --flat-twins runs each sequence's `_flat` twin (t
 without suspension) at the same starts and reports the suspension's cost as the ratio of the
 means (the target is at most 1.2). --starts-seeds 2,3 repeats the runs with /odom (and the twins')
 with those subsampling seeds and reports the means over all seeds: which events each window and
-volume votes moves street_drive's mean over the starts by up to 0.1 deg/s. These runs are timed
-once.
+volume votes moves street_drive's mean over the starts by up to 0.1 deg/s. --scene-seeds 7,11 runs
+the same starts with /odom (and the twins') on the sequence simulated with those seeds
+(NAME_s7: another scene, road and noise on the same motion; scripts/make_sequences.sh) and
+reports each and their means: a change that helps only the standard scene is tuned to it. These
+runs are timed once.
 
 The real-time factor of front-end + back-end is the event pipeline's wall time (the back-end on
 its own thread beside the front-end, as the nodes run live, bag decoding included) over the data's
@@ -27,7 +30,8 @@ from run to run, so each sequence is timed --repeat times (default 3) and the mi
 are reported (the outputs of the repeats are identical).
 
     scripts/bench_pipeline.py --ws .build/ws --out out/bench [--repeat N] [--seeds 1,2,3]
-                              [--starts 0.5,1.1,2.3 [--without-odom] [--flat-twins] [--starts-seeds 2,3]]
+                              [--starts 0.5,1.1,2.3 [--without-odom] [--flat-twins] [--starts-seeds 2,3]
+                               [--scene-seeds 7,11]]
                               [SEQUENCE ...]
     (default sequences: indoor_long street_long)
 """
@@ -43,6 +47,14 @@ import tempfile
 import yaml
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def flat_twin(seq):
+    """The flat twin of a sequence, also of one with another simulator seed (NAME_sSEED)."""
+    base, sep, seed = seq.rpartition("_s")
+    if sep and seed.isdigit():
+        return base + "_flat_s" + seed
+    return seq + "_flat"
 
 
 def config_for(seq):
@@ -137,6 +149,37 @@ def over_starts(bin_dir, seq, starts, out_dir, use_odom, first=None, seed=None):
     return {"by_start": by_start, "mean": mean}
 
 
+def over_scenes(bin_dir, seq, scene_seeds, starts, out_dir, standard, with_twins):
+    """The means over the starts with /odom on the sequence simulated with each of scene_seeds
+    (and on its flat twin), beside the standard scene's (`standard`: over_starts results by name),
+    and the means over all scenes."""
+    out = {}
+    names = [seq] + ([flat_twin(seq)] if with_twins else [])
+    for name in names:
+        by_scene = {"standard": standard[name]["mean"]}
+        for seed in scene_seeds:
+            other = flat_twin("%s_s%d" % (seq, seed)) if name != seq else "%s_s%d" % (seq, seed)
+            by_scene["seed%d" % seed] = over_starts(bin_dir, other, starts, out_dir, True)["mean"]
+        out["flat_twin" if name != seq else "suspended"] = {
+            "by_scene": by_scene,
+            "mean": {k: round(statistics.mean(v[k] for v in by_scene.values()), 4)
+                     for k in ("yaw_rpe_rmse_deg_s", "trans_dir_rmse_deg_s")}}
+    if with_twins:
+        out["suspension_ratio_yaw"] = {
+            scene: round(out["suspended"]["by_scene"][scene]["yaw_rpe_rmse_deg_s"] /
+                         out["flat_twin"]["by_scene"][scene]["yaw_rpe_rmse_deg_s"], 3)
+            for scene in out["suspended"]["by_scene"]}
+    m = out["suspended"]
+    print("[bench] pipeline %-12s with odom on the scenes of seeds %s: %s; mean yaw RPE %.3f, translation "
+          "direction %.3f deg/s%s"
+          % (seq, ",".join(str(x) for x in scene_seeds),
+             ", ".join("%s %.3f" % (k, v["yaw_rpe_rmse_deg_s"]) for k, v in m["by_scene"].items()),
+             m["mean"]["yaw_rpe_rmse_deg_s"], m["mean"]["trans_dir_rmse_deg_s"],
+             "; suspension ratios " + ", ".join("%s %.2f" % kv for kv in out["suspension_ratio_yaw"].items())
+             if with_twins else ""), flush=True)
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ws", default=os.path.join(ROOT, ".build", "ws"))
@@ -154,15 +197,20 @@ def main():
     ap.add_argument("--starts-seeds", default="",
                     help="with --starts: the runs with /odom (and the flat twins') also with these "
                          "subsampling seeds, and the means over all seeds")
+    ap.add_argument("--scene-seeds", default="",
+                    help="with --starts: the runs with /odom (and the flat twins') also on the sequences "
+                         "simulated with these seeds (NAME_sSEED)")
     ap.add_argument("sequences", nargs="*", default=["indoor_long", "street_long"])
     a = ap.parse_args()
-    if (a.without_odom or a.flat_twins or a.starts_seeds) and not a.starts:
-        ap.error("--without-odom, --flat-twins and --starts-seeds go with --starts")
+    if (a.without_odom or a.flat_twins or a.starts_seeds or a.scene_seeds) and not a.starts:
+        ap.error("--without-odom, --flat-twins, --starts-seeds and --scene-seeds go with --starts")
     bin_dir = os.path.join(a.ws, "devel", "lib", "vwe_vo")
     starts = [0.0] + [float(x) for x in a.starts.split(",")] if a.starts else []
-    twins = [seq + "_flat" for seq in a.sequences] if a.flat_twins else []
-    subprocess.run(["bash", os.path.join(ROOT, "scripts", "make_sequences.sh")] + a.sequences + twins, check=True,
-                   stdout=subprocess.DEVNULL)
+    scene_seeds = [int(x) for x in a.scene_seeds.split(",")] if a.scene_seeds else []
+    others = ["%s_s%d" % (seq, seed) for seq in a.sequences for seed in scene_seeds]
+    twins = [flat_twin(seq) for seq in a.sequences + others] if a.flat_twins else []
+    subprocess.run(["bash", os.path.join(ROOT, "scripts", "make_sequences.sh")] + a.sequences + others + twins,
+                   check=True, stdout=subprocess.DEVNULL)
     result = {"machine": {"cpus": os.cpu_count(), "processor": platform.processor() or platform.machine(),
                           "load_average_at_start": [round(x, 2) for x in os.getloadavg()]},
               "sequences": {}}
@@ -206,7 +254,7 @@ def main():
                 key = "with_odom" if use_odom else "without_odom"
                 res = {seq: over_starts(bin_dir, seq, starts, pipeline_dir, use_odom, r if use_odom else None)}
                 if a.flat_twins:
-                    twin = seq + "_flat"
+                    twin = flat_twin(seq)
                     res[twin] = over_starts(bin_dir, twin, starts, pipeline_dir, use_odom)
                     res["suspension_ratio_yaw"] = round(res[seq]["mean"]["yaw_rpe_rmse_deg_s"] /
                                                         res[twin]["mean"]["yaw_rpe_rmse_deg_s"], 3)
@@ -215,7 +263,7 @@ def main():
                     # starts moves by up to 0.1 deg/s on the bumpy street (and its ratio by 0.15).
                     seeds = [int(x) for x in a.starts_seeds.split(",")]
                     over_seeds = {}
-                    for name in [seq] + ([seq + "_flat"] if a.flat_twins else []):
+                    for name in [seq] + ([flat_twin(seq)] if a.flat_twins else []):
                         runs = {"default": res[name]["mean"]}
                         for seed in seeds:
                             runs["seed%d" % seed] = over_starts(bin_dir, name, starts, pipeline_dir, True,
@@ -227,24 +275,27 @@ def main():
                     if a.flat_twins:
                         over_seeds["suspension_ratio_yaw"] = round(
                             over_seeds[seq]["mean"]["yaw_rpe_rmse_deg_s"] /
-                            over_seeds[seq + "_flat"]["mean"]["yaw_rpe_rmse_deg_s"], 3)
+                            over_seeds[flat_twin(seq)]["mean"]["yaw_rpe_rmse_deg_s"], 3)
                     res["over_seeds"] = over_seeds
                     print("[bench] pipeline %-12s with odom, over the configuration's and seeds %s: mean yaw RPE "
                           "%.3f, translation direction %.3f deg/s%s"
                           % (seq, a.starts_seeds, over_seeds[seq]["mean"]["yaw_rpe_rmse_deg_s"],
                              over_seeds[seq]["mean"]["trans_dir_rmse_deg_s"],
                              "; flat twin %.3f / %.3f, suspension ratio %.2f"
-                             % (over_seeds[seq + "_flat"]["mean"]["yaw_rpe_rmse_deg_s"],
-                                over_seeds[seq + "_flat"]["mean"]["trans_dir_rmse_deg_s"],
+                             % (over_seeds[flat_twin(seq)]["mean"]["yaw_rpe_rmse_deg_s"],
+                                over_seeds[flat_twin(seq)]["mean"]["trans_dir_rmse_deg_s"],
                                 over_seeds["suspension_ratio_yaw"]) if a.flat_twins else ""), flush=True)
+                if use_odom and scene_seeds:
+                    res["over_scenes"] = over_scenes(bin_dir, seq, scene_seeds, starts, pipeline_dir,
+                                                     res, a.flat_twins)
                 r["starts"][key] = res
                 print("[bench] pipeline %-12s %s, back-end over starts %s s: mean yaw RPE %.3f, translation "
                       "direction %.3f deg/s%s"
                       % (seq, key.replace("_", " "), ", ".join("%g" % x for x in starts),
                          res[seq]["mean"]["yaw_rpe_rmse_deg_s"], res[seq]["mean"]["trans_dir_rmse_deg_s"],
                          "; flat twin %.3f / %.3f, suspension ratio %.2f"
-                         % (res[seq + "_flat"]["mean"]["yaw_rpe_rmse_deg_s"],
-                            res[seq + "_flat"]["mean"]["trans_dir_rmse_deg_s"], res["suspension_ratio_yaw"])
+                         % (res[flat_twin(seq)]["mean"]["yaw_rpe_rmse_deg_s"],
+                            res[flat_twin(seq)]["mean"]["trans_dir_rmse_deg_s"], res["suspension_ratio_yaw"])
                          if a.flat_twins else ""), flush=True)
     path = os.path.join(a.out, a.json)
     with open(path, "w") as f:

@@ -4,6 +4,9 @@
 # (FORMAT=ecd,bag; text files are large: ~20 bytes per event). A sequence is skipped when its
 # stamp file matches the sequence name, seed, format and generator version.
 # Usage: [FORMAT=bag|ecd|ecd,bag] [DRIVE=1] scripts/make_sequences.sh [NAME...]
+# NAME_sSEED (e.g. street_drive_s7) is sequence NAME with the simulator seed SEED instead of its
+# own: another scene, road, sensor noise and IMU noise on the same motion; street_drive_flat_s7 is
+# its flat twin (the same scene).
 # Without names: every listed sequence except the continuous-driving ones (street_drive,
 # indoor_drive and their _flat twins, ~1.5 min each to simulate), which DRIVE=1 adds.
 set -euo pipefail
@@ -26,7 +29,13 @@ fi
 for name in "${names[@]}"; do
   dir="$OUT/$name"
   stamp="$dir/.stamp"
+  sequence="$name"
   seed="$("$BIN" --list | awk -v n="$name" '$1 == n {print $4}')"
+  if [ -z "$seed" ] && [[ "$name" =~ ^(.+)_s([0-9]+)$ ]] &&
+     "$BIN" --list | awk '{print $1}' | grep -qx "${BASH_REMATCH[1]}"; then
+    sequence="${BASH_REMATCH[1]}"
+    seed="${BASH_REMATCH[2]}"
+  fi
   if [ -z "$seed" ]; then "$BIN" --sequence "$name" --format ecd --out /dev/null/x 2>&1 | head -1 >&2; exit 2; fi
   want="name=$name seed=$seed format=$FORMAT version=$VERSION"
   if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && [ -f "$dir/groundtruth.txt" ]; then
@@ -36,6 +45,8 @@ for name in "${names[@]}"; do
   echo "[make_sequences] $name: generating into $dir"
   rm -rf "$dir"
   mkdir -p "$dir"
-  "$BIN" --sequence "$name" --format "$FORMAT" --seed "$seed" --out "$dir" --images --depth-times 1.0,5.0 2> >(tee "$dir/sim.log" >&2)
+  "$BIN" --sequence "$sequence" --format "$FORMAT" --seed "$seed" --out "$dir" --images --depth-times 1.0,5.0 2> >(tee "$dir/sim.log" >&2)
+  # The simulator names the bag after the sequence; a reseeded one after its folder.
+  if [ "$sequence" != "$name" ] && [ -f "$dir/$sequence.bag" ]; then mv "$dir/$sequence.bag" "$dir/$name.bag"; fi
   echo "$want" > "$stamp"
 done

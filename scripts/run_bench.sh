@@ -22,11 +22,11 @@ done
 if [ "$filter" = "." ] || [[ "pipeline" =~ $filter ]]; then
   /usr/bin/python3 "$(dirname "$0")/bench_pipeline.py" --ws "$ws" --out "$out"
   # Continuous driving with suspension, with and without the IMU; from four start times with and
-  # without /odom, beside the flat twins, with /odom also with two more subsampling seeds
-  # (bench_pipeline_drive.json).
+  # without /odom, beside the flat twins, with /odom also with two more subsampling seeds and on
+  # the scenes the simulator makes with seeds 7 and 11 (bench_pipeline_drive.json).
   /usr/bin/python3 "$(dirname "$0")/bench_pipeline.py" --ws "$ws" --out "$out" --repeat 1 --imu \
-    --starts 0.5,1.1,2.3 --without-odom --flat-twins --starts-seeds 2,3 --json bench_pipeline_drive.json \
-    indoor_drive street_drive
+    --starts 0.5,1.1,2.3 --without-odom --flat-twins --starts-seeds 2,3 --scene-seeds 7,11 \
+    --json bench_pipeline_drive.json indoor_drive street_drive
 fi
 # The whole system live: replay_check at rate 1 and 2 (CPU per node, drops, /vwe/odom accuracy).
 if [ "$filter" = "." ] || [[ "live" =~ $filter ]]; then
