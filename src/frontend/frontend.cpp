@@ -125,6 +125,7 @@ void FrontendOptions::validate(const std::string& section) const {
   if (!(gyro_prior_half_range_rad_s > 0)) fail("gyro_prior_half_range_rad_s must be positive");
   if (!(max_backwards_jump_s >= 0)) fail("max_backwards_jump_s must be >= 0");
   one_sided.validate(volume, section);
+  ground.validate(section + ".ground");
 }
 
 Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera,
@@ -141,6 +142,13 @@ Frontend::Frontend(const FrontendOptions& options, const CameraModel& camera,
     ground_mask_ =
         GroundMask(camera_, T_base_cam_, options_.ground_mask ? options_.volume.z_min_m : 0.0,
                    options_.parallax_mask_slope);
+  if (options_.ground.weight > 0) {
+    // The road's evaluations run on the VWE's threads' count, its events on the VWE's slices.
+    options_.ground.objective.pose_slice_s = options_.volume.pose_slice_s;
+    options_.ground.num_threads = options_.volume.num_threads;
+    ground_yaw_ = std::make_unique<GroundYaw>(options_.ground, camera_, T_base_cam_);
+    if (!ground_yaw_->enabled()) ground_yaw_.reset();  // no pixel sees the road in range
+  }
   if (one_sided_.enabled()) {
     const VolumeOptions deeper = one_sided_.deeperPlanes(options_.volume);
     const CameraCalibration& c = camera.calibration();
@@ -273,6 +281,20 @@ double Frontend::speedAt(int64_t t0, int64_t t1, bool* standstill, bool* measure
   const double v = sum / n;
   *standstill = std::abs(v) < options_.standstill_speed_mps;
   return v;
+}
+
+double Frontend::accelerationAt(int64_t t0, int64_t t1) const {
+  // The slope of the odometry's speeds over the window and 0.1 s either side.
+  constexpr int64_t kMargin_ns = 100000000;
+  const int64_t t_mid = t0 + (t1 - t0) / 2;
+  double n = 0, st = 0, stt = 0, sv = 0, stv = 0;
+  for (const RateSample& s : odometry_) {
+    if (s.t_ns < t0 - kMargin_ns || s.t_ns > t1 + kMargin_ns) continue;
+    const double t = dtSec(s.t_ns, t_mid);
+    n += 1, st += t, stt += t * t, sv += s.v, stv += t * s.v;
+  }
+  const double det = n * stt - st * st;
+  return n >= 3 && det > 1e-12 ? (n * stv - st * sv) / det : 0.0;
 }
 
 bool Frontend::gyroAt(int64_t t0, int64_t t1, double* yaw_rate) const {
@@ -566,6 +588,20 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
       }
       arc.evaluations = evaluations;  // all three estimates'
       stats_.windows_restart_slower += slower;
+    }
+    if (ground_yaw_ && measured && arc.status == ArcStatus::kOk) {
+      const GroundYawEstimate road =
+          ground_yaw_->estimate(events, t0, t1, t_ref, v, accelerationAt(t0, t1), arc.omega,
+                                options_.seed + stats_.windows);
+      stats_.ground_evaluations += size_t(road.evaluations);
+      if (road.valid) {
+        const double w = options_.ground.weight;
+        stats_.ground_shift_abs_sum_rad_s += std::abs(road.omega - arc.omega);
+        arc.omega = (1 - w) * arc.omega + w * road.omega;
+        ++stats_.windows_ground;
+      } else {
+        ++stats_.windows_ground_few;
+      }
     }
     *scanned = true;
   }

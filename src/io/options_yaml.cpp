@@ -118,8 +118,30 @@ void nestedVolume(Archive& a, VolumeOptions* o, bool vwe) {
 }
 
 template <typename Archive>
+void fields(Archive& a, GroundYawOptions* o) {
+  a("weight", &o->weight);
+  a("min_depth_m", &o->objective.min_depth_m);
+  a("max_depth_m", &o->objective.max_depth_m);
+  a("grid_scale", &o->objective.grid_scale);
+  a("max_events", &o->max_events);
+  a("min_events", &o->min_events);
+  a("half_range_rad_s", &o->half_range_rad_s);
+  a("step_rad_s", &o->step_rad_s);
+  a("pitch_half_range_deg", &o->pitch_half_range_deg);
+  a("pitch_step_deg", &o->pitch_step_deg);
+  a("pitch_rate_half_range_deg_s", &o->pitch_rate_half_range_deg_s);
+  a("pitch_rate_step_deg_s", &o->pitch_rate_step_deg_s);
+  a("pitch_rounds", &o->pitch_rounds);
+}
+
+template <typename Archive>
 void fields(Archive& a, FrontendOptions* o) {
   nestedVolume(a, &o->volume, true);
+  {
+    Archive g = a.section("ground");
+    fields(g, &o->ground);
+    g.done();
+  }
   a("window_by_count", &o->window_by_count);
   a("window_duration_s", &o->window_duration_s);
   a("window_stride_s", &o->window_stride_s);
@@ -477,6 +499,8 @@ PipelineConfig loadPipelineConfig(const std::string& path,
   // it.
   cfg.frontend.max_backwards_jump_s = cfg.input.max_backward_jump_s;
   cfg.backend.max_backwards_jump_s = cfg.input.max_backward_jump_s;
+  // The road's pitch search centres on the dive the back-end's tilt model predicts from /odom.
+  cfg.frontend.ground.pitch_per_g_rad = cfg.backend.pitch_per_g_deg * kRadPerDeg;
   // The baseline drives at the front-end's speed so that both share one scale source.
   cfg.baseline.nominal_speed_mps = cfg.frontend.nominal_speed_mps;
   cfg.camera = loadCameraCalibrationYaml(calib);

@@ -363,24 +363,31 @@ nlohmann::json OfflinePipeline::report() const {
                          {"backend_thread", backend_thread_.joinable()},
                          {"frontend_waits_for_backend", backend_waits_},
                          {"frontend_wait_s", backend_wait_s_}};
-  j["stages"]["frontend"] = {{"processing_s", frontend_s_},
-                             {"real_time_factor", duration > 0 ? frontend_s_ / duration : 0.0},
-                             {"windows", arcs_.size()},
-                             {"windows_ok", by_status[0]},
-                             {"windows_standstill", by_status[1]},
-                             {"windows_lost", by_status[2]},
-                             {"windows_low_events", by_status[3]},
-                             {"windows_dropped", st.windows_dropped},
-                             {"windows_split", st.windows_split},
-                             {"windows_standstill_edges", st.windows_standstill_edges},
-                             {"windows_restart_slower", st.windows_restart_slower},
-                             {"windows_one_sided", st.windows_one_sided},
-                             {"windows_one_sided_near", st.windows_one_sided_near},
-                             {"windows_rolled", st.windows_rolled},
-                             {"objective_evaluations", st.evaluations},
-                             {"events_ground_masked", st.events_ground_masked},
-                             {"follows_backend", follower_.changesArcs()},
-                             {"speeds_from_backend", follower_.speedsTaken()}};
+  j["stages"]["frontend"] = {
+      {"processing_s", frontend_s_},
+      {"real_time_factor", duration > 0 ? frontend_s_ / duration : 0.0},
+      {"windows", arcs_.size()},
+      {"windows_ok", by_status[0]},
+      {"windows_standstill", by_status[1]},
+      {"windows_lost", by_status[2]},
+      {"windows_low_events", by_status[3]},
+      {"windows_dropped", st.windows_dropped},
+      {"windows_split", st.windows_split},
+      {"windows_standstill_edges", st.windows_standstill_edges},
+      {"windows_restart_slower", st.windows_restart_slower},
+      {"windows_one_sided", st.windows_one_sided},
+      {"windows_one_sided_near", st.windows_one_sided_near},
+      {"windows_rolled", st.windows_rolled},
+      {"windows_ground", st.windows_ground},
+      {"windows_ground_few", st.windows_ground_few},
+      {"ground_evaluations", st.ground_evaluations},
+      {"mean_ground_shift_deg_s", st.windows_ground > 0 ? st.ground_shift_abs_sum_rad_s *
+                                                              kDegPerRad / double(st.windows_ground)
+                                                        : 0.0},
+      {"objective_evaluations", st.evaluations},
+      {"events_ground_masked", st.events_ground_masked},
+      {"follows_backend", follower_.changesArcs()},
+      {"speeds_from_backend", follower_.speedsTaken()}};
   if (backend_) {
     const BackendStats& b = backend_->stats();
     j["stages"]["backend"] = {

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "vwe_vo/frontend/ground_yaw.h"
 #include "vwe_vo/frontend/one_sided.h"
 #include "vwe_vo/sensor/camera.h"
 #include "vwe_vo/sensor/events.h"
@@ -124,6 +125,14 @@ struct FrontendOptions {
   // street shrinks and the cut removes real facade points (0.78 -> 0.94), so windows without
   // /odom keep the reference view's range only.
   bool per_camera_min_depth = false;
+  // With a measured speed (/odom), each window's yaw rate is also measured on the road and the
+  // two averaged (ground_yaw.h; YAML section ground:, weight 0: off). The road cannot take up a
+  // yaw error with depth, as one-sided facades and those seen at grazing angles do; it needs
+  // the body's pitch, which it estimates as a nuisance. car.yaml 0.5 (and the back-end's arc
+  // prior 1e-2): street_drive's back-end yaw RPE with /odom over four starts 0.521 -> 0.376,
+  // over three subsampling seeds 0.583 -> 0.386, its flat twin 0.421 -> 0.267 (docs/method.md).
+  // It costs ~120 evaluations of the road's objective a window.
+  GroundYawOptions ground;
   uint64_t seed = 1;  // subsampling seed
   /// Throws std::invalid_argument naming the field by its YAML key, section + "." + key.
   void validate(const std::string& section = "frontend") const;
@@ -169,7 +178,11 @@ struct FrontendStats {
   size_t windows_rolled = 0;            // omega refined at a non-zero roll rate
                                         // (roll_rate_step_rad_s)
   size_t windows_one_sided_near =
-      0;  // one-sided, but the structure nearer than one_sided.min_depth_m
+      0;                          // one-sided, but the structure nearer than one_sided.min_depth_m
+  size_t windows_ground = 0;      // yaw rate averaged with the road's (ground.weight)
+  size_t windows_ground_few = 0;  // ... not: fewer road events than ground.min_events
+  size_t ground_evaluations = 0;  // of the road's objective
+  double ground_shift_abs_sum_rad_s = 0.0;  // sum of |road - VWE| yaw rate [rad/s]
 };
 
 /// How the front-end scans a window beyond its centre and half range.
@@ -268,6 +281,9 @@ class Frontend {
   /// Mean /odom speed over [t0, t1], else the nominal speed (*measured false).
   double speedAt(int64_t t0_ns, int64_t t1_ns, bool* standstill, bool* measured = nullptr) const;
   bool gyroAt(int64_t t0_ns, int64_t t1_ns, double* yaw_rate) const;
+  /// The odometry's acceleration over [t0, t1] (a line through its speeds there and 0.1 s
+  /// either side) [m/s^2]; 0 without odometry.
+  double accelerationAt(int64_t t0_ns, int64_t t1_ns) const;
 
   FrontendOptions options_;
   const CameraModel& camera_;
@@ -278,7 +294,8 @@ class Frontend {
   VweObjectivePool scan_objectives_;  // one evaluation per thread (the scans)
   // The same with the deeper planes of one-sided windows (one_sided.balance > 0).
   OneSidedRule one_sided_;
-  GroundMask ground_mask_;  // keeps every pixel unless options.ground_mask
+  GroundMask ground_mask_;                 // keeps every pixel unless options.ground_mask
+  std::unique_ptr<GroundYaw> ground_yaw_;  // ground.weight > 0
   std::unique_ptr<VweObjectivePool> one_sided_scan_objectives_;
   std::unique_ptr<ProjectiveVolume> one_sided_volume_;
   std::unique_ptr<VweObjective> one_sided_objective_;

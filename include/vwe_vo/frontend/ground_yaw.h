@@ -1,0 +1,110 @@
+// A front-end window's yaw rate measured a second way, on the road (vwe/ground_objective.h), and
+// averaged with the VWE's. The two fail in different places: the VWE where the structure is
+// one-sided or seen at grazing angles (a yaw error refocuses it at other depths), the road where
+// the body's pitch is off or the road is hidden. On the road a pitch error of a tenth of a degree
+// misplaces the plane by centimetres, so the body's pitch at the window's middle and its rate
+// are nuisance parameters of the road's estimate (a car pitches 0.2-0.3 deg RMS on its
+// suspension; street_drive's per-window yaw-rate error on the road, 0.3 s windows: 1.8 deg/s
+// RMS at pitch 0, 0.9 with the nuisance, 0.34 at the true pitch). Only with a measured speed:
+// the road is metric (docs/method.md).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "vwe_vo/common/math.h"
+#include "vwe_vo/common/thread_pool.h"
+#include "vwe_vo/sensor/camera.h"
+#include "vwe_vo/sensor/events.h"
+#include "vwe_vo/trajectory/trajectory_model.h"
+#include "vwe_vo/vwe/ground_objective.h"
+
+namespace vwe_vo {
+
+struct GroundYawOptions {
+  // The road's share of a window's yaw rate: (1 - weight) VWE + weight road (0: off). Two
+  // measurements of about equal spread on a bumpy street (0.3 s windows: 0.9 deg/s RMS each,
+  // nearly independent): equal weights.
+  double weight = 0.0;
+  GroundObjectiveOptions objective;
+  size_t max_events = 10000;        // road events per window (uniform per time slice)
+  size_t min_events = 2000;         // fewer: the window keeps the VWE's yaw rate
+  double half_range_rad_s = 0.075;  // searched within +-this of the VWE's yaw rate [rad/s]
+  double step_rad_s = 0.0025;       // finest step of that search [rad/s]
+  double pitch_half_range_deg = 0.6;        // the body's pitch, searched within +-this
+  double pitch_step_deg = 0.1;              // in these steps [deg]
+  double pitch_rate_half_range_deg_s = 2.0;  // its rate likewise [deg/s]
+  double pitch_rate_step_deg_s = 0.25;
+  // The body's pitch per g of deceleration, nose down (backend.pitch_per_g_deg, which the
+  // configuration copies here): the pitch search centres on the dive the window's /odom
+  // deceleration predicts (a car braking at 0.3 g dives about 1 deg, past the search's range).
+  double pitch_per_g_rad = 0.0;
+  int pitch_rounds = 2;  // alternations of (pitch, pitch rate, yaw rate) searches (0: pitch 0)
+  int num_threads = 2;   // evaluations in parallel (the front-end sets volume.num_threads)
+  /// Throws std::invalid_argument naming the field by its key, section + "." + key.
+  void validate(const std::string& section) const;
+};
+
+struct GroundYawEstimate {
+  bool valid = false;  // false: too few road events
+  double omega = 0.0;  // the road's yaw rate [rad/s]
+  double pitch = 0.0, pitch_rate = 0.0;  // the nuisance at its best [rad, rad/s]
+  double contrast = 0.0;
+  size_t events = 0;    // road events voted
+  int evaluations = 0;
+};
+
+/// An Ackermann arc of base_link whose body pitches (about base_link's y axis, nose down > 0) by
+/// pitch + pitch_rate (t - t_ref) above the road: T_Cr_Ct = (P(t_ref) T_base_cam)^-1 arc(t)
+/// P(t) T_base_cam.
+class PitchedArcModel : public TrajectoryModel {
+ public:
+  PitchedArcModel(double omega, double v, int64_t t_ref_ns, const Pose3& T_base_cam, double pitch,
+                  double pitch_rate);
+  int numParams() const override { return 2; }
+  int64_t referenceTime() const override { return t_ref_ns_; }
+  bool covers(int64_t) const override { return true; }
+  Pose3 T_Cr_Ct(int64_t t_ns, PoseJacobian* jac = nullptr) const override;
+  /// The road (base_link z = 0 at t_ref) in the reference camera frame.
+  GroundPlane groundInReference() const;
+
+ private:
+  Pose3 T_ground_cam(int64_t t_ns) const;  // the camera at t in the arc's road frame at t
+  double omega_, v_;
+  int64_t t_ref_ns_;
+  Pose3 T_base_cam_, T_ref_inv_;
+  double pitch_, pitch_rate_;
+};
+
+class GroundYaw {
+ public:
+  GroundYaw(const GroundYawOptions& options, const CameraModel& camera, const Pose3& T_base_cam);
+  bool enabled() const { return options_.weight > 0 && objectives_.front()->groundPixels() > 0; }
+  const GroundYawOptions& options() const { return options_; }
+  /// The road's yaw rate of a window's events [t0, t1] (all of them: this picks the road's),
+  /// driven at v [m/s] about t_ref and accelerating at dv [m/s^2] (the dive's centre for the
+  /// pitch), searched around omega_center [rad/s].
+  GroundYawEstimate estimate(const EventVector& events, int64_t t0_ns, int64_t t1_ns,
+                             int64_t t_ref_ns, double v, double dv, double omega_center,
+                             uint64_t seed);
+
+ private:
+  struct Params {
+    double omega, pitch, pitch_rate;
+  };
+  /// The contrast at each of `params`, in parallel.
+  std::vector<double> evaluate(const std::vector<Params>& params);
+
+  GroundYawOptions options_;
+  Pose3 T_base_cam_;
+  ThreadPool pool_;
+  std::vector<std::unique_ptr<GroundObjective>> objectives_;  // one per thread
+  GroundEvents events_;                                       // of the window being estimated
+  int64_t t_ref_ns_ = 0;
+  double v_ = 0.0;
+  int evaluations_ = 0;
+};
+
+}  // namespace vwe_vo
