@@ -81,16 +81,15 @@ std::vector<double> GroundYaw::evaluate(const std::vector<Params>& params) {
   pool_.run(int(params.size()), [&](int i, int thread) {
     const Params& p = params[size_t(i)];
     const PitchedArcModel model(p.omega, v_, t_ref_ns_, T_base_cam_, p.pitch, p.pitch_rate);
-    f[size_t(i)] =
-        objectives_[size_t(thread)]->evaluate(events_, model, model.groundInReference());
+    f[size_t(i)] = objectives_[size_t(thread)]->evaluate(events_, model, model.groundInReference());
   });
   evaluations_ += int(params.size());
   return f;
 }
 
 GroundYawEstimate GroundYaw::estimate(const EventVector& events, int64_t t0_ns, int64_t t1_ns,
-                                      int64_t t_ref_ns, double v, double dv,
-                                      double omega_center, uint64_t seed) {
+                                      int64_t t_ref_ns, double v, double dv, double omega_center,
+                                      uint64_t seed) {
   GroundYawEstimate out;
   evaluations_ = 0;
   const EventVector road = objectives_.front()->groundEvents(events);
@@ -135,7 +134,8 @@ GroundYawEstimate GroundYaw::estimate(const EventVector& events, int64_t t0_ns, 
   const auto [ps, f] = search(&Params::omega, best.omega, fine, fine);
   double omega = best.omega;
   const double curvature = f[0] - 2 * f[1] + f[2];
-  if (curvature < 0) omega = ps[1].omega + fine * std::clamp(0.5 * (f[0] - f[2]) / curvature, -1.0, 1.0);
+  if (curvature < 0)
+    omega = ps[1].omega + fine * std::clamp(0.5 * (f[0] - f[2]) / curvature, -1.0, 1.0);
   out.valid = true;
   out.omega = omega;
   out.pitch = best.pitch;

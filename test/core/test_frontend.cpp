@@ -6,6 +6,7 @@
 #include <random>
 
 #include "../common/synthetic_events.h"
+#include "../common/test_camera.h"
 #include "vwe_vo/frontend/backlog_policy.h"
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/io/config.h"
@@ -16,9 +17,7 @@ using namespace vwe_vo;
 
 namespace {
 const CameraModel& camera() {
-  static const CameraModel cam(
-      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
-  return cam;
+  return test::davis346Camera();
 }
 FrontendOptions options() {
   FrontendOptions o;

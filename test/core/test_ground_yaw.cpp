@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "../common/synthetic_events.h"
+#include "../common/test_camera.h"
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/frontend/ground_yaw.h"
 #include "vwe_vo/io/config.h"
@@ -16,12 +17,12 @@ using namespace vwe_vo;
 
 namespace {
 const CameraModel& camera() {
-  static const CameraModel cam(
-      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
-  return cam;
+  return test::davis346Camera();
 }
 // config/car.yaml's mount: 1.5 m ahead of the rear axle, 1.4 m up, pitched 5 deg down.
-Pose3 carMount() { return mountToTBaseCam(Vec3(1.5, 0, 1.4), 0, 5 / kDegPerRad, 0); }
+Pose3 carMount() {
+  return mountToTBaseCam(Vec3(1.5, 0, 1.4), 0, 5 / kDegPerRad, 0);
+}
 
 constexpr double kOmega = 8 / kDegPerRad, kV = 7.0;
 constexpr double kPitch = 0.3 / kDegPerRad, kPitchRate = 1.0 / kDegPerRad;
@@ -43,7 +44,7 @@ EventVector roadEvents(const PitchedArcModel& model, int n, unsigned seed,
   // ray of random road pixels (x, y in base_link at t_ref: the camera's height along n).
   const Pose3 T_cam_road = model.T_Cr_Ct(kTRef);  // identity, as a check of the reference
   EXPECT_TRUE(T_cam_road.isApprox(Pose3::Identity(), 1e-12));
-  const Vec3 down = -plane.n;  // towards the road
+  const Vec3 down = -plane.n;        // towards the road
   const Vec3 foot = plane.h * down;  // the camera's foot on the road
   // Two directions along the road: base_link's x and y projected onto the plane.
   const Mat3 R_base_cam = carMount().linear();
@@ -135,8 +136,8 @@ TEST(GroundYaw, LeavesAWindowWithoutRoadEventsAlone) {
   GroundYaw ground(o, camera(), carMount());
   EventVector sky;
   for (int i = 0; i < 5000; ++i) sky.push_back({kTRef + i * 10000, uint16_t(i % 346), 5, 1});
-  const GroundYawEstimate e = ground.estimate(sky, kTRef - secToNs(0.15), kTRef + secToNs(0.15),
-                                              kTRef, kV, 0.0, kOmega, 1);
+  const GroundYawEstimate e =
+      ground.estimate(sky, kTRef - secToNs(0.15), kTRef + secToNs(0.15), kTRef, kV, 0.0, kOmega, 1);
   EXPECT_FALSE(e.valid);
   EXPECT_EQ(e.evaluations, 0);
 }

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "../common/synthetic_events.h"
+#include "../common/test_camera.h"
 #include "vwe_vo/io/config.h"
 #include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/vwe/vwe_image.h"
@@ -10,9 +11,7 @@ using namespace vwe_vo;
 
 namespace {
 const CameraModel& camera() {
-  static const CameraModel cam(
-      loadCameraCalibrationYaml(std::string(VWE_VO_SOURCE_DIR) + "/config/davis346.yaml"));
-  return cam;
+  return test::davis346Camera();
 }
 double imageVariance(const cv::Mat& m) {
   cv::Scalar mean, stddev;

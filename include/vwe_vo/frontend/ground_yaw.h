@@ -29,12 +29,12 @@ struct GroundYawOptions {
   // nearly independent): equal weights.
   double weight = 0.0;
   GroundObjectiveOptions objective;
-  size_t max_events = 10000;        // road events per window (uniform per time slice)
-  size_t min_events = 2000;         // fewer: the window keeps the VWE's yaw rate
-  double half_range_rad_s = 0.075;  // searched within +-this of the VWE's yaw rate [rad/s]
-  double step_rad_s = 0.0025;       // finest step of that search [rad/s]
-  double pitch_half_range_deg = 0.6;        // the body's pitch, searched within +-this
-  double pitch_step_deg = 0.1;              // in these steps [deg]
+  size_t max_events = 10000;                 // road events per window (uniform per time slice)
+  size_t min_events = 2000;                  // fewer: the window keeps the VWE's yaw rate
+  double half_range_rad_s = 0.075;           // searched within +-this of the VWE's yaw rate [rad/s]
+  double step_rad_s = 0.0025;                // finest step of that search [rad/s]
+  double pitch_half_range_deg = 0.6;         // the body's pitch, searched within +-this
+  double pitch_step_deg = 0.1;               // in these steps [deg]
   double pitch_rate_half_range_deg_s = 2.0;  // its rate likewise [deg/s]
   double pitch_rate_step_deg_s = 0.25;
   // The body's pitch per g of deceleration, nose down (backend.pitch_per_g_deg, which the
@@ -48,11 +48,11 @@ struct GroundYawOptions {
 };
 
 struct GroundYawEstimate {
-  bool valid = false;  // false: too few road events
-  double omega = 0.0;  // the road's yaw rate [rad/s]
+  bool valid = false;                    // false: too few road events
+  double omega = 0.0;                    // the road's yaw rate [rad/s]
   double pitch = 0.0, pitch_rate = 0.0;  // the nuisance at its best [rad, rad/s]
   double contrast = 0.0;
-  size_t events = 0;    // road events voted
+  size_t events = 0;  // road events voted
   int evaluations = 0;
 };
 
