@@ -5,8 +5,8 @@
 // misplaces the plane by centimetres, so the body's pitch at the window's middle and its rate
 // are nuisance parameters of the road's estimate (a car pitches 0.2-0.3 deg RMS on its
 // suspension; street_drive's per-window yaw-rate error on the road, 0.3 s windows: 1.8 deg/s
-// RMS at pitch 0, 0.9 with the nuisance, 0.34 at the true pitch). Only with a measured speed:
-// the road is metric (docs/method.md).
+// RMS at pitch 0, 0.9 with the nuisance, 0.51 at the true pitch, 0.34 at the true pitch and
+// roll). Only with a measured speed: the road is metric (docs/method.md).
 #pragma once
 
 #include <cstdint>
