@@ -598,6 +598,7 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
         const double w = options_.ground.weight;
         stats_.ground_shift_abs_sum_rad_s += std::abs(road.omega - arc.omega);
         arc.omega = (1 - w) * arc.omega + w * road.omega;
+        arc.road_omega = road.omega, arc.road_pitch = road.pitch, arc.road_roll = road.roll;
         ++stats_.windows_ground;
       } else {
         ++stats_.windows_ground_few;

@@ -25,37 +25,45 @@ void GroundYawOptions::validate(const std::string& section) const {
   if (!(pitch_rate_step_deg_s > 0)) fail("pitch_rate_step_deg_s must be positive");
   if (!(pitch_rate_half_range_deg_s >= 0 && pitch_rate_half_range_deg_s <= 30))
     fail("pitch_rate_half_range_deg_s must be in [0, 30] deg/s");
+  if (!(std::abs(roll_per_g_rad) <= 0.5)) fail("roll_per_g_rad must be in [-0.5, 0.5]");
   if (pitch_rounds < 0 || pitch_rounds > 10) fail("pitch_rounds must be in [0, 10]");
   if (num_threads < 1 || num_threads > 64) fail("num_threads must be in [1, 64]");
 }
 
-namespace {
-Pose3 pitched(double pitch) {
-  Pose3 T = Pose3::Identity();
-  T.linear() = Eigen::AngleAxisd(pitch, Vec3::UnitY()).toRotationMatrix();
-  return T;
-}
-}  // namespace
-
 PitchedArcModel::PitchedArcModel(double omega, double v, int64_t t_ref_ns, const Pose3& T_base_cam,
-                                 double pitch, double pitch_rate)
+                                 double pitch, double pitch_rate, double roll)
     : omega_(omega),
       v_(v),
       t_ref_ns_(t_ref_ns),
       T_base_cam_(T_base_cam),
       pitch_(pitch),
-      pitch_rate_(pitch_rate) {
+      pitch_rate_(pitch_rate),
+      roll_(roll) {
   T_ref_inv_ = T_ground_cam(t_ref_ns).inverse();
 }
 
 Pose3 PitchedArcModel::T_ground_cam(int64_t t_ns) const {
+  // arc(t) Ry(pitch(t)) Rx(roll) T_base_cam as 3x3 products (once per pose slice of every
+  // evaluation, rather than 4x4 transforms): each rotation mixes two columns.
   const double dt = dtSec(t_ns, t_ref_ns_);
-  return arcT_Vr_Vt(omega_, v_, dt) * pitched(pitch_ + pitch_rate_ * dt) * T_base_cam_;
+  const Pose3 A = arcT_Vr_Vt(omega_, v_, dt);
+  Mat3 M = A.linear();
+  auto mix = [&M](int i, int j, double angle) {  // M times the rotation taking e_i towards e_j
+    const double c = std::cos(angle), s = std::sin(angle);
+    const Vec3 mi = M.col(i), mj = M.col(j);
+    M.col(i) = c * mi + s * mj;
+    M.col(j) = c * mj - s * mi;
+  };
+  mix(2, 0, pitch_ + pitch_rate_ * dt);  // Ry = [c 0 s; 0 1 0; -s 0 c]
+  if (roll_ != 0.0) mix(1, 2, roll_);    // Rx
+  return makePose(M * T_base_cam_.linear(), M * T_base_cam_.translation() + A.translation());
 }
 
 Pose3 PitchedArcModel::T_Cr_Ct(int64_t t_ns, PoseJacobian* jac) const {
   if (jac) throw std::logic_error("PitchedArcModel: poses only");
-  return T_ref_inv_ * T_ground_cam(t_ns);
+  const Pose3 T = T_ground_cam(t_ns);
+  return makePose(T_ref_inv_.linear() * T.linear(),
+                  T_ref_inv_.linear() * T.translation() + T_ref_inv_.translation());
 }
 
 GroundPlane PitchedArcModel::groundInReference() const {
@@ -80,7 +88,7 @@ std::vector<double> GroundYaw::evaluate(const std::vector<Params>& params) {
   std::vector<double> f(params.size());
   pool_.run(int(params.size()), [&](int i, int thread) {
     const Params& p = params[size_t(i)];
-    const PitchedArcModel model(p.omega, v_, t_ref_ns_, T_base_cam_, p.pitch, p.pitch_rate);
+    const PitchedArcModel model(p.omega, v_, t_ref_ns_, T_base_cam_, p.pitch, p.pitch_rate, p.roll);
     f[size_t(i)] = objectives_[size_t(thread)]->evaluate(events_, model, model.groundInReference());
   });
   evaluations_ += int(params.size());
@@ -92,31 +100,48 @@ GroundYawEstimate GroundYaw::estimate(const EventVector& events, int64_t t0_ns, 
                                       uint64_t seed) {
   GroundYawEstimate out;
   evaluations_ = 0;
-  const EventVector road = objectives_.front()->groundEvents(events);
-  if (road.size() < options_.min_events) return out;
+  objectives_.front()->groundEvents(events, &road_);
+  if (road_.size() < options_.min_events) return out;
   constexpr int kTimeSlices = 10;
   const PitchedArcModel everywhere(0.0, v, t_ref_ns, T_base_cam_, 0.0, 0.0);
   events_ = objectives_.front()->prepare(
-      subsampleEventsPerTimeSlice(road, t0_ns, t1_ns, options_.max_events, kTimeSlices, seed),
+      subsampleEventsPerTimeSlice(road_, t0_ns, t1_ns, options_.max_events, kTimeSlices, seed),
       everywhere);
   t_ref_ns_ = t_ref_ns;
   v_ = v;
   constexpr double kGravity = 9.80665;  // [m/s^2]
   const double dive = -options_.pitch_per_g_rad * dv / kGravity;
-  Params best{omega_center, dive, 0.0};
+  const double lean = options_.roll_per_g_rad * v * omega_center / kGravity;
+  Params best{omega_center, dive, 0.0, lean};
   double best_f = -1.0;
-  // Points of one coordinate c in [lo, hi] every step, the others at best; the best kept.
+  // Points of one coordinate c within center +- half every step, the others at best; the best
+  // kept. Over four or more steps each side every second point first, then the best one's two
+  // neighbours (the contrast is smooth over two steps: a third fewer evaluations).
   auto search = [&](double Params::*c, double center, double half, double step) {
     const int k = std::max(1, int(std::floor(half / step + 1e-9)));
-    std::vector<Params> ps;
-    for (int i = -k; i <= k; ++i) {
-      Params p = best;
+    const int stride = k >= 4 ? 2 : 1;
+    const Params base = best;
+    auto at = [&](int i) {
+      Params p = base;
       p.*c = center + i * step;
-      ps.push_back(p);
+      return p;
+    };
+    std::vector<Params> ps;
+    std::vector<int> index;
+    for (int i = -k; i <= k; i += stride) ps.push_back(at(i)), index.push_back(i);
+    std::vector<double> f = evaluate(ps);
+    size_t b = size_t(std::max_element(f.begin(), f.end()) - f.begin());
+    if (stride > 1) {
+      std::vector<Params> more;
+      std::vector<int> more_index;
+      for (int i : {index[b] - 1, index[b] + 1})
+        if (i >= -k && i <= k) more.push_back(at(i)), more_index.push_back(i);
+      const std::vector<double> g = evaluate(more);
+      for (size_t j = 0; j < g.size(); ++j)
+        ps.push_back(more[j]), index.push_back(more_index[j]), f.push_back(g[j]);
+      b = size_t(std::max_element(f.begin(), f.end()) - f.begin());
     }
-    const std::vector<double> f = evaluate(ps);
-    const size_t i = size_t(std::max_element(f.begin(), f.end()) - f.begin());
-    if (f[i] > best_f) best_f = f[i], best = ps[i];
+    if (f[b] > best_f) best_f = f[b], best = ps[b];
     return std::make_pair(ps, f);
   };
   // The yaw rate coarse (four fine steps) over the range, then fine around the best.
@@ -140,6 +165,7 @@ GroundYawEstimate GroundYaw::estimate(const EventVector& events, int64_t t0_ns, 
   out.omega = omega;
   out.pitch = best.pitch;
   out.pitch_rate = best.pitch_rate;
+  out.roll = best.roll;
   out.contrast = best_f;
   out.events = events_.size();
   out.evaluations = evaluations_;

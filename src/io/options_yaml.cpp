@@ -499,8 +499,9 @@ PipelineConfig loadPipelineConfig(const std::string& path,
   // it.
   cfg.frontend.max_backwards_jump_s = cfg.input.max_backward_jump_s;
   cfg.backend.max_backwards_jump_s = cfg.input.max_backward_jump_s;
-  // The road's pitch search centres on the dive the back-end's tilt model predicts from /odom.
+  // The road's pitch and roll centre on the dive and lean of the back-end's tilt model.
   cfg.frontend.ground.pitch_per_g_rad = cfg.backend.pitch_per_g_deg * kRadPerDeg;
+  cfg.frontend.ground.roll_per_g_rad = cfg.backend.roll_per_g_deg * kRadPerDeg;
   // The baseline drives at the front-end's speed so that both share one scale source.
   cfg.baseline.nominal_speed_mps = cfg.frontend.nominal_speed_mps;
   cfg.camera = loadCameraCalibrationYaml(calib);

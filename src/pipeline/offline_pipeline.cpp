@@ -335,12 +335,13 @@ void writeArcsCsv(const std::string& path, const std::vector<ArcEstimate>& arcs)
   if (!f) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
   std::fprintf(f,
                "t_ref,t_start,t_end,omega,v,contrast,confidence,num_events,window_events,status,"
-               "evaluations,roll_rate,omega_without_roll\n");
+               "evaluations,roll_rate,omega_without_roll,road_omega,road_pitch,road_roll\n");
   for (const ArcEstimate& a : arcs)
-    std::fprintf(f, "%.9f,%.9f,%.9f,%.9f,%.6f,%.9g,%.6f,%u,%zu,%s,%d,%.6f,%.9f\n",
+    std::fprintf(f, "%.9f,%.9f,%.9f,%.9f,%.6f,%.9g,%.6f,%u,%zu,%s,%d,%.6f,%.9f,%.9f,%.7f,%.7f\n",
                  nsToSec(a.t_ref_ns), nsToSec(a.t_start_ns), nsToSec(a.t_end_ns), a.omega, a.v,
                  a.contrast, a.confidence, a.num_events, a.window_events, toString(a.status),
-                 a.evaluations, a.roll_rate, a.omegaWithoutRoll());
+                 a.evaluations, a.roll_rate, a.omegaWithoutRoll(), a.road_omega, a.road_pitch,
+                 a.road_roll);
   std::fclose(f);
 }
 

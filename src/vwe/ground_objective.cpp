@@ -46,12 +46,10 @@ GroundObjective::GroundObjective(const GroundObjectiveOptions& options, const Ca
   grid_.assign(size_t(grid_w_) * grid_h_, 0.0f);
 }
 
-EventVector GroundObjective::groundEvents(const EventVector& events) const {
-  EventVector out;
-  out.reserve(events.size() / 2);
+void GroundObjective::groundEvents(const EventVector& events, EventVector* out) const {
+  out->clear();
   for (const PixelEvent& e : events)
-    if (seesGround(e.x, e.y)) out.push_back(e);
-  return out;
+    if (seesGround(e.x, e.y)) out->push_back(e);
 }
 
 GroundEvents GroundObjective::prepare(const EventVector& events,
@@ -80,11 +78,16 @@ double GroundObjective::evaluate(const EventVector& events, const TrajectoryMode
 
 double GroundObjective::evaluate(const GroundEvents& events, const TrajectoryModel& model,
                                  const GroundPlane& plane) {
-  touched_.clear();
+  if (votes_.size() < events.size()) votes_.resize(events.size());
+  Vote* const votes = votes_.data();  // written in place: no push_back in the loop
+  size_t num_votes = 0;
   const size_t W = size_t(grid_w_);
   const float umax = float(grid_w_ - 1), vmax = float(grid_h_ - 1);
-  double pairs = 0.0;
-  size_t votes = 0;
+  // The pairs of votes that meet: adding w to a pixel holding V adds 2 w V, so over a pixel's
+  // votes they sum to V^2 - sum w^2, the squares summed as the image is cleared. Projecting,
+  // voting and clearing are three passes: none reads what another just wrote.
+  const Mat3 K = (Mat3() << fx_, 0, cx_, 0, fy_, cy_, 0, 0, 1).finished();
+  double own = 0.0;
   for (size_t s = 0; s + 1 < events.slice_begin.size(); ++s) {
     // The camera at the slice's time, (R, o) in the reference frame. The plane there is
     // n_t . X + h_t = 0 with n_t = R^T n, h_t = n . o + h; its point on the bearing f is
@@ -97,9 +100,9 @@ double GroundObjective::evaluate(const GroundEvents& events, const TrajectoryMod
     const double h_t = plane.n.dot(o) + plane.h;
     if (!(h_t > 1e-6)) continue;  // the camera at or below the road
     Mat3 H = R - o * n_t.transpose() / h_t;
-    const Mat3 K = (Mat3() << fx_, 0, cx_, 0, fy_, cy_, 0, 0, 1).finished();
     const Eigen::Matrix3f KH = (K * H).cast<float>();
     const Eigen::Vector3f nf = n_t.cast<float>();
+    float slice_own = 0.0f;
     for (uint32_t k = events.slice_begin[s]; k < events.slice_begin[s + 1]; ++k) {
       const Eigen::Vector3f& f = events.bearings[k];
       if (!(nf.dot(f) < -1e-6f)) continue;  // the bearing misses the road
@@ -110,23 +113,29 @@ double GroundObjective::evaluate(const GroundEvents& events, const TrajectoryMod
       if (!(u >= 0.0f && v >= 0.0f && u < umax && v < vmax)) continue;
       const int ix = int(u), iy = int(v);
       const float ax = u - float(ix), ay = v - float(iy);
-      const size_t idx = size_t(iy) * W + size_t(ix);
-      float* c0 = grid_.data() + idx;
-      float* c1 = c0 + W;
-      const float w00 = (1 - ax) * (1 - ay), w10 = ax * (1 - ay), w01 = (1 - ax) * ay,
-                  w11 = ax * ay;
-      // Adding w to a pixel holding V adds 2 w V to the pairs of votes (ProjectiveVolume).
-      pairs += double(2 * (w00 * c0[0] + w10 * c0[1] + w01 * c1[0] + w11 * c1[1]));
-      c0[0] += w00, c0[1] += w10, c1[0] += w01, c1[1] += w11;
-      touched_.push_back(uint32_t(idx));
-      ++votes;
+      // The four weights' squares: ((1 - ax)^2 + ax^2) ((1 - ay)^2 + ay^2).
+      slice_own += ((1 - ax) * (1 - ax) + ax * ax) * ((1 - ay) * (1 - ay) + ay * ay);
+      Vote& b = votes[num_votes++];
+      b.idx = uint32_t(size_t(iy) * W + size_t(ix)), b.ax = ax, b.ay = ay;
     }
+    own += double(slice_own);
   }
-  for (uint32_t idx : touched_) {
-    float* c0 = grid_.data() + idx;
-    c0[0] = c0[1] = c0[W] = c0[W + 1] = 0.0f;
+  for (const Vote* b = votes; b != votes + num_votes; ++b) {
+    float* c0 = grid_.data() + b->idx;
+    float* c1 = c0 + W;
+    c0[0] += (1 - b->ax) * (1 - b->ay), c0[1] += b->ax * (1 - b->ay);
+    c1[0] += (1 - b->ax) * b->ay, c1[1] += b->ax * b->ay;
   }
-  return votes > 0 ? pairs / double(votes) : 0.0;
+  // Each pixel's V^2 once: a pixel touched again reads the zero it was left.
+  double squares = 0.0;
+  for (const Vote* b = votes; b != votes + num_votes; ++b) {
+    float* c0 = grid_.data() + b->idx;
+    float* c1 = c0 + W;
+    const Eigen::Vector4d c(c0[0], c0[1], c1[0], c1[1]);
+    squares += c.squaredNorm();
+    c0[0] = c0[1] = c1[0] = c1[1] = 0.0f;
+  }
+  return num_votes > 0 ? (squares - own) / double(num_votes) : 0.0;
 }
 
 }  // namespace vwe_vo

@@ -11,6 +11,7 @@
 #include "vwe_vo/frontend/frontend.h"
 #include "vwe_vo/frontend/ground_yaw.h"
 #include "vwe_vo/io/config.h"
+#include "vwe_vo/trajectory/ackermann_arc.h"
 #include "vwe_vo/vwe/ground_objective.h"
 
 using namespace vwe_vo;
@@ -105,6 +106,48 @@ TEST(GroundObjective, IsSharpestAtTheTrueYawRateAndPitch) {
   EXPECT_DOUBLE_EQ(at(kOmega, kPitch, kPitchRate), best);
 }
 
+TEST(GroundObjective, DensityPerVoteCountsThePairsOfVotesThatMeet) {
+  // At a standstill every event lands on its own pixel (a pinhole camera: the grid's pixel
+  // centres are the sensor's). n votes on one pixel make n (n - 1) ordered pairs that meet.
+  const CameraModel pinhole(test::syntheticCalibration(false));
+  GroundObjective objective(GroundObjectiveOptions(), pinhole, carMount());
+  const PitchedArcModel still(0.0, 0.0, kTRef, carMount(), 0.0, 0.0);
+  EventVector events;
+  auto add = [&](int x, int y, int n) {
+    ASSERT_TRUE(objective.seesGround(x, y)) << x << " " << y;
+    for (int i = 0; i < n; ++i)
+      events.push_back({kTRef + int64_t(events.size()) * 100000, uint16_t(x), uint16_t(y), 1});
+  };
+  add(100, 240, 3);
+  add(101, 240, 2);  // the neighbour: its votes do not meet the first pixel's
+  add(200, 230, 1);
+  add(250, 250, 4);
+  const double expected = (3 * 2 + 2 * 1 + 0 + 4 * 3) / 10.0;
+  EXPECT_NEAR(objective.evaluate(events, still, still.groundInReference()), expected, 1e-3);
+  // An event above the horizon is not the road's: left out.
+  events.push_back({kTRef + int64_t(events.size()) * 100000, 173, 10, 1});
+  EXPECT_NEAR(objective.evaluate(events, still, still.groundInReference()), expected, 1e-3);
+}
+
+TEST(PitchedArcModel, IsTheArcOfABodyTiltingOnItsMount) {
+  // (B(t_ref) T_base_cam)^-1 arc(t) B(t) T_base_cam, B = Ry(pitch) Rx(roll), as 4x4 transforms.
+  constexpr double kRoll = -0.4 / kDegPerRad;
+  const PitchedArcModel model(kOmega, kV, kTRef, carMount(), kPitch, kPitchRate, kRoll);
+  auto body = [&](double dt) {
+    Pose3 B = Pose3::Identity();
+    B.linear() = (Eigen::AngleAxisd(kPitch + kPitchRate * dt, Vec3::UnitY()) *
+                  Eigen::AngleAxisd(kRoll, Vec3::UnitX()))
+                     .toRotationMatrix();
+    return arcT_Vr_Vt(kOmega, kV, dt) * B * carMount();
+  };
+  for (double dt : {-0.15, -0.01, 0.0, 0.07, 0.15}) {
+    const Pose3 expected = body(0.0).inverse() * body(dt);
+    const Pose3 T = model.T_Cr_Ct(kTRef + secToNs(dt));
+    EXPECT_TRUE(T.linear().isApprox(expected.linear(), 1e-12)) << dt;
+    EXPECT_LT((T.translation() - expected.translation()).norm(), 1e-12) << dt;
+  }
+}
+
 TEST(GroundYaw, RecoversTheYawRateOfAPitchingBody) {
   const EventVector events = roadEvents(truth(), 40000, 5);
   GroundYawOptions o;
@@ -128,6 +171,31 @@ TEST(GroundYaw, RecoversTheYawRateOfAPitchingBody) {
                                             kTRef, kV, 0.0, kOmega + 2 / kDegPerRad, 1);
   ASSERT_TRUE(f.valid);
   EXPECT_GT(std::abs(f.omega - kOmega), std::abs(e.omega - kOmega));
+}
+
+TEST(GroundYaw, WarpsTheRoadWithTheLeanOfTheTurn) {
+  // A body leaning out of the turn by roll_per_g v omega / g (a soft car: 0.2 rad/g, 1.1 deg
+  // here); the road is warped with the lean the searched-around yaw rate predicts.
+  constexpr double kGravity = 9.80665, kRollPerG = 0.2;
+  const double lean = kRollPerG * kV * kOmega / kGravity;
+  const PitchedArcModel leaning(kOmega, kV, kTRef, carMount(), kPitch, kPitchRate, lean);
+  const EventVector events = roadEvents(leaning, 40000, 7);
+  GroundYawOptions o;
+  o.weight = 0.5;
+  o.roll_per_g_rad = kRollPerG;
+  GroundYaw ground(o, camera(), carMount());
+  const int64_t t0 = kTRef - secToNs(0.15), t1 = kTRef + secToNs(0.15);
+  const GroundYawEstimate e = ground.estimate(events, t0, t1, kTRef, kV, 0.0, kOmega, 1);
+  ASSERT_TRUE(e.valid);
+  EXPECT_DOUBLE_EQ(e.roll, lean);
+  EXPECT_NEAR(e.omega * kDegPerRad, kOmega * kDegPerRad, 0.2);
+  // Warped upright, the same events give a worse yaw rate.
+  o.roll_per_g_rad = 0.0;
+  GroundYaw upright(o, camera(), carMount());
+  const GroundYawEstimate u = upright.estimate(events, t0, t1, kTRef, kV, 0.0, kOmega, 1);
+  ASSERT_TRUE(u.valid);
+  EXPECT_EQ(u.roll, 0.0);
+  EXPECT_GT(std::abs(u.omega - kOmega), std::abs(e.omega - kOmega));
 }
 
 TEST(GroundYaw, LeavesAWindowWithoutRoadEventsAlone) {

@@ -154,6 +154,11 @@ struct ArcEstimate {
   /// the roll, whose windows scatter less (docs/method.md).
   double roll_omega_shift = 0.0;
   double omegaWithoutRoll() const { return omega - roll_omega_shift; }
+  /// The road's measurement (frontend.ground), averaged into omega: its yaw rate [rad/s] and the
+  /// body's pitch and roll at t_ref it found [rad]; NaN in windows without it.
+  double road_omega = std::numeric_limits<double>::quiet_NaN();
+  double road_pitch = std::numeric_limits<double>::quiet_NaN();
+  double road_roll = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Dead reckoning through the arcs with omegaWithoutRoll() and v ramping between the arcs'

@@ -41,6 +41,12 @@ struct GroundYawOptions {
   // configuration copies here): the pitch search centres on the dive the window's /odom
   // deceleration predicts (a car braking at 0.3 g dives about 1 deg, past the search's range).
   double pitch_per_g_rad = 0.0;
+  // The body's roll per g of lateral acceleration, out of the turn (backend.roll_per_g_deg,
+  // copied likewise): the road is warped with the body leaning by the roll the window's speed
+  // and yaw rate predict, roll_per_g v omega / g (a car at 7 m/s turning at 10 deg/s leans
+  // 0.6 deg at 5 deg/g). Held there, not searched: street_drive's roll is 0.46 deg RMS, 0.16 deg
+  // from this prediction, 0.27 deg from the road's own best roll.
+  double roll_per_g_rad = 0.0;
   int pitch_rounds = 2;  // alternations of (pitch, pitch rate, yaw rate) searches (0: pitch 0)
   int num_threads = 2;   // evaluations in parallel (the front-end sets volume.num_threads)
   /// Throws std::invalid_argument naming the field by its key, section + "." + key.
@@ -51,18 +57,20 @@ struct GroundYawEstimate {
   bool valid = false;                    // false: too few road events
   double omega = 0.0;                    // the road's yaw rate [rad/s]
   double pitch = 0.0, pitch_rate = 0.0;  // the nuisance at its best [rad, rad/s]
+  double roll = 0.0;                     // the lean it was warped with [rad]
   double contrast = 0.0;
   size_t events = 0;  // road events voted
   int evaluations = 0;
 };
 
 /// An Ackermann arc of base_link whose body pitches (about base_link's y axis, nose down > 0) by
-/// pitch + pitch_rate (t - t_ref) above the road: T_Cr_Ct = (P(t_ref) T_base_cam)^-1 arc(t)
-/// P(t) T_base_cam.
+/// pitch + pitch_rate (t - t_ref) and leans (about x) by a constant roll above the road:
+/// T_Cr_Ct = (B(t_ref) T_base_cam)^-1 arc(t) B(t) T_base_cam, B = Ry(pitch) Rx(roll) (as Tilt in
+/// sensor/imu.h).
 class PitchedArcModel : public TrajectoryModel {
  public:
   PitchedArcModel(double omega, double v, int64_t t_ref_ns, const Pose3& T_base_cam, double pitch,
-                  double pitch_rate);
+                  double pitch_rate, double roll = 0.0);
   int numParams() const override { return 2; }
   int64_t referenceTime() const override { return t_ref_ns_; }
   bool covers(int64_t) const override { return true; }
@@ -75,7 +83,7 @@ class PitchedArcModel : public TrajectoryModel {
   double omega_, v_;
   int64_t t_ref_ns_;
   Pose3 T_base_cam_, T_ref_inv_;
-  double pitch_, pitch_rate_;
+  double pitch_, pitch_rate_, roll_;
 };
 
 class GroundYaw {
@@ -92,7 +100,7 @@ class GroundYaw {
 
  private:
   struct Params {
-    double omega, pitch, pitch_rate;
+    double omega, pitch, pitch_rate, roll;
   };
   /// The contrast at each of `params`, in parallel.
   std::vector<double> evaluate(const std::vector<Params>& params);
@@ -101,6 +109,7 @@ class GroundYaw {
   Pose3 T_base_cam_;
   ThreadPool pool_;
   std::vector<std::unique_ptr<GroundObjective>> objectives_;  // one per thread
+  EventVector road_;                                          // the window's road events
   GroundEvents events_;                                       // of the window being estimated
   int64_t t_ref_ns_ = 0;
   double v_ = 0.0;

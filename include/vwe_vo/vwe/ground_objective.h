@@ -53,8 +53,8 @@ class GroundObjective {
   /// Whether pixel (x, y) sees the untilted ground within [min_depth_m, max_depth_m].
   bool seesGround(int x, int y) const { return ground_[size_t(y) * width_ + x] != 0; }
   size_t groundPixels() const { return ground_pixels_; }
-  /// The events of ground pixels, in order.
-  EventVector groundEvents(const EventVector& events) const;
+  /// The events of ground pixels, in order, into *out (its storage reused window after window).
+  void groundEvents(const EventVector& events, EventVector* out) const;
   /// The events of ground pixels that `covers` (the model's time span) keeps, as GroundEvents.
   GroundEvents prepare(const EventVector& events, const TrajectoryModel& covers) const;
   /// The density per vote (VolumeOptions' kDensityPerVote: the mean of the image a vote meets,
@@ -75,8 +75,12 @@ class GroundObjective {
   float fx_, fy_, cx_, cy_;      // grid pinhole
   std::vector<uint8_t> ground_;  // per pixel: sees the ground in range
   size_t ground_pixels_ = 0;
+  struct Vote {
+    uint32_t idx;  // the grid cell at its upper left
+    float ax, ay;  // its place within the four cells
+  };
   std::vector<float> grid_;
-  std::vector<uint32_t> touched_;
+  std::vector<Vote> votes_;  // of the evaluation under way (as many as its events)
 };
 
 }  // namespace vwe_vo
