@@ -1,8 +1,16 @@
 #include "vwe_vo/sensor/ground_mask.h"
 
 #include <cmath>
+#include <limits>
 
 namespace vwe_vo {
+
+double groundDepthAlongAxis(const Vec3& f, const Pose3& T_base_cam) {
+  const double height = T_base_cam.translation().z();
+  const double down = (T_base_cam.linear() * f).z();  // the ray's slope in base_link (z up)
+  if (!(height > 0) || !(down < -1e-9)) return std::numeric_limits<double>::quiet_NaN();
+  return height / -down * f.z();
+}
 
 GroundMask::GroundMask(const CameraModel& camera, const Pose3& T_base_cam, double min_depth_m,
                        double min_parallax_slope) {
@@ -17,9 +25,9 @@ GroundMask::GroundMask(const CameraModel& camera, const Pose3& T_base_cam, doubl
       const Vec3 d = camera.bearing(x, y).cast<double>();
       const Vec3 b = R * d;  // in base_link: x forward (the direction of travel), z up
       bool mask = false;
-      if (ground && b.z() < 0 && d.z() > 0) {
-        const double depth = height / -b.z() * d.z();  // along the optical axis, where it lands
-        mask = depth < min_depth_m;
+      if (ground) {
+        const double depth = groundDepthAlongAxis(d, T_base_cam);
+        mask = depth > 0 && depth < min_depth_m;
       }
       if (min_parallax_slope > 0 && b.x() > 0 &&
           std::abs(b.z()) < min_parallax_slope * std::abs(b.y()))

@@ -3,6 +3,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "vwe_vo/sensor/ground_mask.h"
 #include "vwe_vo/vwe/ray_builder.h"
 
 namespace vwe_vo {
@@ -28,21 +29,14 @@ GroundObjective::GroundObjective(const GroundObjectiveOptions& options, const Ca
   fx_ = float(c.fx * s), fy_ = float(c.fy * s);
   cx_ = float((c.cx + 0.5) * s - 0.5 + m);
   cy_ = float((c.cy + 0.5) * s - 0.5 + m);
-  // The plane z = 0 of base_link in the camera frame: n . X + h = 0.
-  const Vec3 n = T_base_cam.linear().transpose() * Vec3::UnitZ();
-  const double h = T_base_cam.translation().z();
   ground_.assign(size_t(width_) * height_, 0);
-  if (h > 0)
-    for (int y = 0; y < height_; ++y)
-      for (int x = 0; x < width_; ++x) {
-        const Vec3 f = camera.bearing(x, y).cast<double>();
-        const double nf = n.dot(f);
-        if (!(nf < -1e-9)) continue;  // at or above the horizon
-        const double depth = -h / nf * f.z();
-        if (depth < options_.min_depth_m || depth > options_.max_depth_m) continue;
-        ground_[size_t(y) * width_ + x] = 1;
-        ++ground_pixels_;
-      }
+  for (int y = 0; y < height_; ++y)
+    for (int x = 0; x < width_; ++x) {
+      const double depth = groundDepthAlongAxis(camera.bearing(x, y).cast<double>(), T_base_cam);
+      if (!(depth >= options_.min_depth_m && depth <= options_.max_depth_m)) continue;
+      ground_[size_t(y) * width_ + x] = 1;
+      ++ground_pixels_;
+    }
   grid_.assign(size_t(grid_w_) * grid_h_, 0.0f);
 }
 

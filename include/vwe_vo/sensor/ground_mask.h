@@ -17,6 +17,11 @@
 
 namespace vwe_vo {
 
+/// The depth along the camera's optical axis at which the bearing f (camera frame) meets the
+/// ground, the plane z = 0 of base_link under T_base_cam; NaN where it does not (a ray at or above
+/// the horizon, a camera at or below the ground). Negative for a ray behind the camera.
+double groundDepthAlongAxis(const Vec3& f, const Pose3& T_base_cam);
+
 class GroundMask {
  public:
   /// Keeps every pixel.
