@@ -26,7 +26,7 @@ void GroundYawOptions::validate(const std::string& section) const {
   if (!(pitch_rate_half_range_deg_s >= 0 && pitch_rate_half_range_deg_s <= 30))
     fail("pitch_rate_half_range_deg_s must be in [0, 30] deg/s");
   if (!(std::abs(roll_per_g_rad) <= 0.5)) fail("roll_per_g_rad must be in [-0.5, 0.5]");
-  if (pitch_rounds < 0 || pitch_rounds > 10) fail("pitch_rounds must be in [0, 10]");
+  if (pitch_rounds < 0 || pitch_rounds > 20) fail("pitch_rounds must be in [0, 20]");
   if (num_threads < 1 || num_threads > 64) fail("num_threads must be in [1, 64]");
 }
 
@@ -148,12 +148,29 @@ GroundYawEstimate GroundYaw::estimate(const EventVector& events, int64_t t0_ns, 
   const double fine = options_.step_rad_s;
   search(&Params::omega, omega_center, options_.half_range_rad_s, 4 * fine);
   search(&Params::omega, best.omega, 3 * fine, fine);
+  // Pitch, pitch rate and yaw rate in turn until none of them moves: on the road a pitch and a
+  // pitch rate of the same sign shift the near rows alike, so the best lies along a ridge that each
+  // search climbs by a step or two (two rounds stopped short of it on a pitching body). A search
+  // whose points and other coordinates are as at its last run would find the same point: it is
+  // skipped (the yaw rate's points follow its best, so a move of its own runs it again).
+  int moves = 0, pitch_seen = -1, rate_seen = -1, omega_seen = -1;
+  auto searchIfMoved = [&](int* seen, double Params::*c, double center, double half, double step) {
+    if (*seen == moves) return;
+    const double before = best.*c;
+    search(c, center, half, step);
+    const bool moved = best.*c != before;
+    moves += moved;
+    *seen = moved && c == &Params::omega ? -1 : moves;
+  };
   for (int r = 0; r < options_.pitch_rounds; ++r) {
-    search(&Params::pitch, dive, options_.pitch_half_range_deg * kRadPerDeg,
-           options_.pitch_step_deg * kRadPerDeg);
-    search(&Params::pitch_rate, 0.0, options_.pitch_rate_half_range_deg_s * kRadPerDeg,
-           options_.pitch_rate_step_deg_s * kRadPerDeg);
-    search(&Params::omega, best.omega, 8 * fine, fine);
+    const int moves_before = moves;
+    searchIfMoved(&pitch_seen, &Params::pitch, dive, options_.pitch_half_range_deg * kRadPerDeg,
+                  options_.pitch_step_deg * kRadPerDeg);
+    searchIfMoved(&rate_seen, &Params::pitch_rate, 0.0,
+                  options_.pitch_rate_half_range_deg_s * kRadPerDeg,
+                  options_.pitch_rate_step_deg_s * kRadPerDeg);
+    searchIfMoved(&omega_seen, &Params::omega, best.omega, 8 * fine, fine);
+    if (r > 0 && moves == moves_before) break;
   }
   // The parabola's vertex through the best yaw rate and its neighbours.
   const auto [ps, f] = search(&Params::omega, best.omega, fine, fine);

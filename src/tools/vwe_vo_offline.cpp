@@ -415,7 +415,9 @@ int main(int argc, char** argv) {
       const ros::Time begin =
           rosbag::View(bag, rosbag::TopicQuery(topics)).getBeginTime() + ros::Duration(start_s);
       rosbag::View view(bag, rosbag::TopicQuery(topics), begin);
-      const double total = (view.getEndTime() - view.getBeginTime()).toSec();
+      // An empty view (--start past the end) has no span: the no-events error below names it.
+      const double total =
+          view.size() == 0 ? 0.0 : (view.getEndTime() - view.getBeginTime()).toSec();
       size_t packets = 0;
       vwe_vo::EventVector events;
       vwe_vo::EventConversionStats conv;

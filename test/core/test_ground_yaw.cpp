@@ -253,3 +253,40 @@ TEST(GroundYaw, TheFrontendUsesTheRoadOnlyWithAMeasuredSpeed) {
     }
   }
 }
+
+TEST(GroundYaw, ClimbsTheRidgeOfPitchAndPitchRate) {
+  // A pitch and a pitch rate of the same sign shift the near road rows alike: a body pitched
+  // -0.5 deg and pitching at -1.5 deg/s looks nearly as sharp at (-0.2 deg, -0.75 deg/s), where
+  // two rounds of pitch, pitch rate and yaw rate stop, 0.1 deg/s off in yaw rate.
+  const PitchedArcModel body(kOmega, kV, kTRef, carMount(), -0.5 / kDegPerRad, -1.5 / kDegPerRad);
+  const EventVector events = roadEvents(body, 40000, 11);
+  const int64_t t0 = kTRef - secToNs(0.15), t1 = kTRef + secToNs(0.15);
+  auto estimate = [&](int rounds) {
+    GroundYawOptions o;
+    o.weight = 0.5;
+    o.pitch_rounds = rounds;
+    GroundYaw ground(o, camera(), carMount());
+    return ground.estimate(events, t0, t1, kTRef, kV, 0.0, kOmega + 1 / kDegPerRad, 1);
+  };
+  const GroundYawEstimate e = estimate(20), two = estimate(2);
+  ASSERT_TRUE(e.valid && two.valid);
+  EXPECT_NEAR(e.omega * kDegPerRad, kOmega * kDegPerRad, 0.04);
+  EXPECT_NEAR(e.pitch * kDegPerRad, -0.5, 0.15);
+  EXPECT_NEAR(e.pitch_rate * kDegPerRad, -1.5, 0.3);
+  EXPECT_GT(std::abs(two.omega - kOmega) * kDegPerRad, 0.06);
+  // The rounds stop by themselves once nothing moves: far fewer evaluations than 20 rounds of
+  // three searches (~30 each).
+  EXPECT_LT(e.evaluations, 250);
+  // A level body at the centre of the searches: no search of the second round runs (the yaw rate
+  // coarse and fine, one round of pitch, pitch rate and yaw rate, the vertex: 10 + 7 + 31 + 3).
+  const PitchedArcModel level(kOmega, kV, kTRef, carMount(), 0.0, 0.0);
+  GroundYawOptions o;
+  o.weight = 0.5;
+  o.pitch_rounds = 20;
+  GroundYaw ground(o, camera(), carMount());
+  const GroundYawEstimate l =
+      ground.estimate(roadEvents(level, 40000, 13), t0, t1, kTRef, kV, 0.0, kOmega, 1);
+  ASSERT_TRUE(l.valid);
+  EXPECT_NEAR(l.omega * kDegPerRad, kOmega * kDegPerRad, 0.06);
+  EXPECT_EQ(l.evaluations, 51);
+}
