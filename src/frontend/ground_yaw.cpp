@@ -148,11 +148,12 @@ GroundYawEstimate GroundYaw::estimate(const EventVector& events, int64_t t0_ns, 
   const double fine = options_.step_rad_s;
   search(&Params::omega, omega_center, options_.half_range_rad_s, 4 * fine);
   search(&Params::omega, best.omega, 3 * fine, fine);
-  // Pitch, pitch rate and yaw rate in turn until none of them moves: on the road a pitch and a
-  // pitch rate of the same sign shift the near rows alike, so the best lies along a ridge that each
-  // search climbs by a step or two (two rounds stopped short of it on a pitching body). A search
-  // whose points and other coordinates are as at its last run would find the same point: it is
-  // skipped (the yaw rate's points follow its best, so a move of its own runs it again).
+  // Pitch, pitch rate and yaw rate in turn until none of them moves: on the road an error of the
+  // pitch is nearly undone by one of the pitch rate of the same sign (~2.5 deg/s per deg), so the
+  // best lies along a ridge that each search climbs by a step or two (two rounds stopped short of
+  // it on a pitching body). A search whose points and other coordinates are as at its last run
+  // would find the same point: it is skipped (the yaw rate's points follow its best, so a move of
+  // its own runs it again).
   int moves = 0, pitch_seen = -1, rate_seen = -1, omega_seen = -1;
   auto searchIfMoved = [&](int* seen, double Params::*c, double center, double half, double step) {
     if (*seen == moves) return;

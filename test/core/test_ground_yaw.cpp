@@ -255,9 +255,9 @@ TEST(GroundYaw, TheFrontendUsesTheRoadOnlyWithAMeasuredSpeed) {
 }
 
 TEST(GroundYaw, ClimbsTheRidgeOfPitchAndPitchRate) {
-  // A pitch and a pitch rate of the same sign shift the near road rows alike: a body pitched
-  // -0.5 deg and pitching at -1.5 deg/s looks nearly as sharp at (-0.2 deg, -0.75 deg/s), where
-  // two rounds of pitch, pitch rate and yaw rate stop, 0.1 deg/s off in yaw rate.
+  // On the road an error of the pitch is nearly undone by one of the pitch rate of the same sign:
+  // a body pitched -0.5 deg and pitching at -1.5 deg/s looks nearly as sharp at (-0.2 deg, -0.75
+  // deg/s), where two rounds of pitch, pitch rate and yaw rate stop, 0.1 deg/s off in yaw rate.
   const PitchedArcModel body(kOmega, kV, kTRef, carMount(), -0.5 / kDegPerRad, -1.5 / kDegPerRad);
   const EventVector events = roadEvents(body, 40000, 11);
   const int64_t t0 = kTRef - secToNs(0.15), t1 = kTRef + secToNs(0.15);
