@@ -592,14 +592,19 @@ ArcEstimate Frontend::estimateSpan(const EventVector& events, int64_t t0, int64_
     if (ground_yaw_ && measured && arc.status == ArcStatus::kOk) {
       const GroundYawEstimate road =
           ground_yaw_->estimate(events, t0, t1, t_ref, v, accelerationAt(t0, t1), arc.omega,
-                                options_.seed + stats_.windows);
+                                options_.seed + stats_.windows,
+                                lost_ ? std::numeric_limits<double>::quiet_NaN() : last_omega_);
       stats_.ground_evaluations += size_t(road.evaluations);
       if (road.valid) {
-        const double w = options_.ground.weight;
+        const double w = ground_yaw_->share(road);
         stats_.ground_shift_abs_sum_rad_s += std::abs(road.omega - arc.omega);
         arc.omega = (1 - w) * arc.omega + w * road.omega;
         arc.road_omega = road.omega, arc.road_pitch = road.pitch, arc.road_roll = road.roll;
+        arc.road_pitch_rate = road.pitch_rate, arc.road_curvature = road.curvature;
+        arc.road_share = w;
         ++stats_.windows_ground;
+        stats_.windows_ground_alone += w == 1.0;
+        stats_.windows_ground_refused += w == 0.0;
       } else {
         ++stats_.windows_ground_few;
       }

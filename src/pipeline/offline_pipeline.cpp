@@ -335,13 +335,17 @@ void writeArcsCsv(const std::string& path, const std::vector<ArcEstimate>& arcs)
   if (!f) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
   std::fprintf(f,
                "t_ref,t_start,t_end,omega,v,contrast,confidence,num_events,window_events,status,"
-               "evaluations,roll_rate,omega_without_roll,road_omega,road_pitch,road_roll\n");
+               "evaluations,roll_rate,omega_without_roll,road_omega,road_pitch,road_roll,"
+               "road_pitch_rate,road_curvature,road_share\n");
   for (const ArcEstimate& a : arcs)
-    std::fprintf(f, "%.9f,%.9f,%.9f,%.9f,%.6f,%.9g,%.6f,%u,%zu,%s,%d,%.6f,%.9f,%.9f,%.7f,%.7f\n",
-                 nsToSec(a.t_ref_ns), nsToSec(a.t_start_ns), nsToSec(a.t_end_ns), a.omega, a.v,
-                 a.contrast, a.confidence, a.num_events, a.window_events, toString(a.status),
-                 a.evaluations, a.roll_rate, a.omegaWithoutRoll(), a.road_omega, a.road_pitch,
-                 a.road_roll);
+    std::fprintf(
+        f,
+        "%.9f,%.9f,%.9f,%.9f,%.6f,%.9g,%.6f,%u,%zu,%s,%d,%.6f,%.9f,%.9f,%.7f,%.7f,%.7f,%.6g,"
+        "%.4f\n",
+        nsToSec(a.t_ref_ns), nsToSec(a.t_start_ns), nsToSec(a.t_end_ns), a.omega, a.v, a.contrast,
+        a.confidence, a.num_events, a.window_events, toString(a.status), a.evaluations, a.roll_rate,
+        a.omegaWithoutRoll(), a.road_omega, a.road_pitch, a.road_roll, a.road_pitch_rate,
+        a.road_curvature, a.road_share);
   std::fclose(f);
 }
 
@@ -381,6 +385,8 @@ nlohmann::json OfflinePipeline::report() const {
       {"windows_rolled", st.windows_rolled},
       {"windows_ground", st.windows_ground},
       {"windows_ground_few", st.windows_ground_few},
+      {"windows_ground_alone", st.windows_ground_alone},
+      {"windows_ground_refused", st.windows_ground_refused},
       {"ground_evaluations", st.ground_evaluations},
       {"mean_ground_shift_deg_s", st.windows_ground > 0 ? st.ground_shift_abs_sum_rad_s *
                                                               kDegPerRad / double(st.windows_ground)

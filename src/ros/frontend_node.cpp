@@ -411,13 +411,14 @@ void FrontendNode::logStatus() {
   const FrontendStats& s = frontend_->stats();
   ROS_INFO(
       "frontend_node: %zu windows (%zu split in two) (%zu one-sided, %zu one-sided but near) (%zu "
-      "at a roll rate) (%zu with the road's yaw rate, %zu with too little road) -> "
+      "at a roll rate) (%zu with the road's yaw rate, %zu of them the road's alone, %zu the VWE's "
+      "alone, %zu with too little road) -> "
       "%zu arcs (%zu ok, %zu standstill, %zu lost, %zu "
       "low events), %zu windows skipped behind, %zu thinned behind; "
       "%.0f events/s in, %zu outside the sensor, %zu late, %zu on the near ground not voted; %zu "
       "resets; real-time factor %.3f; input: %s",
       s.windows, s.windows_split, s.windows_one_sided, s.windows_one_sided_near, s.windows_rolled,
-      s.windows_ground, s.windows_ground_few,
+      s.windows_ground, s.windows_ground_alone, s.windows_ground_refused, s.windows_ground_few,
       windows_ok_ + windows_standstill_ + windows_lost_ + windows_low_, windows_ok_,
       windows_standstill_, windows_lost_, windows_low_, s.windows_dropped, s.windows_thinned,
       double(s.events_in - last_status_events_) / wall_s,

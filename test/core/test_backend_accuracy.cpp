@@ -189,8 +189,8 @@ TEST(BackendAccuracy, IndoorDriveStopsInBendsOnAnUnevenFloor) {
 // this test measured 0.578 against 0.674 and ATE 0.31 %; on the bag, over two subsampling seeds
 // and two late starts, the change moved street_long 0.616 -> 0.587 (ATE 0.41 % both) and
 // street_drive 1.03 -> 0.69 (ATE 1.46 -> 0.22 %). The ratio moves with where the windows fall
-// (subsampling seed, bag start), so the street asks only that the back-end is no worse (by a
-// tenth, now that the road's yaw rate makes the front-end's arcs as good on this flat street).
+// (subsampling seed, bag start), so the street asks only that the back-end is not much worse
+// (the road's yaw rate makes the front-end's arcs as good on this flat street).
 TEST(BackendAccuracy, StreetLongWithTheCarConfig) {
   // A car at 5-8 m/s with 90-degree turns; config/car.yaml (its mount, one-sided windows with
   // planes from 10 m where the facade is deep enough), for this rigid car without the suspension's
@@ -198,12 +198,13 @@ TEST(BackendAccuracy, StreetLongWithTheCarConfig) {
   const PipelineRun r = run("street_long", "car_rigid.yaml");
   EXPECT_EQ(r.nonfinite_poses, 0u);
   // With the road's yaw rate in its arcs (car.yaml's frontend.ground) the front-end's own
-  // odometry on this flat street is about as good as the refinement: the back-end may not be
-  // worse by more than a tenth (before the road: 0.440 vs 0.551).
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 1.1 * r.frontend.rpe.rot_rmse_deg_s);  // 0.342 vs 0.325
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.45);                                 // measured 0.342
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.3);                            // measured 0.186
-  EXPECT_LE(r.backend.ate_percent_of_path, 0.4);                                 // measured 0.24
+  // odometry on this flat street is as good as the refinement: on the bag, from 0, 0.5, 1.1 and
+  // 2.3 s, the back-end over the front-end 1.26 / 1.00 / 0.81 / 0.94 (means 0.225 and 0.227), so
+  // one run's back-end may be worse by up to 30 % (before the road: 0.440 vs 0.551).
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 1.3 * r.frontend.rpe.rot_rmse_deg_s);  // 0.278 / 0.237
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.36);                                 // measured 0.278
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.3);                            // measured 0.158
+  EXPECT_LE(r.backend.ate_percent_of_path, 0.4);                                 // measured 0.15
   ASSERT_GE(r.backend.scale_drift.ratios.size(), 20u);
   EXPECT_LE(r.backend.scale_drift.max_ratio / r.backend.scale_drift.min_ratio,
             1.03);  // measured 1.021 (1.015 with the back-end's volumes unmasked)
@@ -218,9 +219,9 @@ TEST(BackendAccuracy, StreetLongStartedLate) {
   const PipelineRun r = run("street_long", "car_rigid.yaml", 0.25);
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_LE(r.backend.rpe.rot_rmse_deg_s,
-            1.15 * r.frontend.rpe.rot_rmse_deg_s);  // measured 0.342 vs 0.308
-  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.45);    // measured 0.342
-  EXPECT_LE(r.backend.ate_percent_of_path, 0.4);    // measured 0.27
+            1.3 * r.frontend.rpe.rot_rmse_deg_s);  // measured 0.246 vs 0.228
+  EXPECT_LE(r.backend.rpe.rot_rmse_deg_s, 0.36);   // measured 0.246
+  EXPECT_LE(r.backend.ate_percent_of_path, 0.4);   // measured 0.23
 }
 
 // A car weaving in the right lane of a street (5.6-9.4 m/s, lane changes, a bend; the flat twin:
@@ -237,8 +238,8 @@ TEST(BackendAccuracy, StreetDriveWeavingInTheRightLane) {
   EXPECT_EQ(r.nonfinite_poses, 0u);
   EXPECT_GE(r.backend.tracked_fraction, 0.95);
   EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, r.frontend.rpe.yaw_rmse_deg_s);
-  EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 0.7);        // measured 0.474
-  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.4);  // measured 0.266
+  EXPECT_LE(r.backend.rpe.yaw_rmse_deg_s, 0.7);        // measured 0.195 (before the road 0.474)
+  EXPECT_LE(r.backend.rpe.trans_dir_rmse_deg_s, 0.4);  // measured 0.119 (0.266)
 }
 
 // The car on its suspension (pitch/roll 1-2 deg, bumps, braking dives) with the DAVIS's IMU: the

@@ -278,7 +278,7 @@ TEST(GroundYaw, ClimbsTheRidgeOfPitchAndPitchRate) {
   // three searches (~30 each).
   EXPECT_LT(e.evaluations, 250);
   // A level body at the centre of the searches: no search of the second round runs (the yaw rate
-  // coarse and fine, one round of pitch, pitch rate and yaw rate, the vertex: 10 + 7 + 31 + 3).
+  // coarse and fine, one round of pitch, pitch rate and yaw rate: 10 + 7 + 31).
   const PitchedArcModel level(kOmega, kV, kTRef, carMount(), 0.0, 0.0);
   GroundYawOptions o;
   o.weight = 0.5;
@@ -288,5 +288,50 @@ TEST(GroundYaw, ClimbsTheRidgeOfPitchAndPitchRate) {
       ground.estimate(roadEvents(level, 40000, 13), t0, t1, kTRef, kV, 0.0, kOmega, 1);
   ASSERT_TRUE(l.valid);
   EXPECT_NEAR(l.omega * kDegPerRad, kOmega * kDegPerRad, 0.06);
-  EXPECT_EQ(l.evaluations, 51);
+  EXPECT_EQ(l.evaluations, 48);
+  EXPECT_GT(l.curvature, 0.0);
+}
+
+TEST(GroundYaw, SearchesAroundThePreviousYawRateWhenTheVwesJumped) {
+  // The VWE's yaw rate 12 deg/s off (a spurious peak of its full scan), the previous window's
+  // 1 deg/s off: the road searches around both, finds the truth near the previous one and takes
+  // the window alone.
+  const PitchedArcModel level(kOmega, kV, kTRef, carMount(), 0.0, 0.0);
+  const EventVector events = roadEvents(level, 40000, 17);
+  const int64_t t0 = kTRef - secToNs(0.15), t1 = kTRef + secToNs(0.15);
+  GroundYawOptions o;
+  o.weight = 0.8;
+  GroundYaw ground(o, camera(), carMount());
+  const double spurious = kOmega + 12 / kDegPerRad, previous = kOmega + 1 / kDegPerRad;
+  const GroundYawEstimate e =
+      ground.estimate(events, t0, t1, kTRef, kV, 0.0, spurious, 1, previous);
+  ASSERT_TRUE(e.valid);
+  EXPECT_NEAR(e.omega * kDegPerRad, kOmega * kDegPerRad, 0.1);
+  EXPECT_TRUE(e.apart);
+  EXPECT_TRUE(e.near_prior);
+  EXPECT_EQ(ground.share(e), 1.0);
+  // Without the previous yaw rate the rounds climb there from the edge of the VWE's range (254
+  // evaluations against 57), but nothing confirms the road's against the VWE's: no share.
+  const GroundYawEstimate alone = ground.estimate(events, t0, t1, kTRef, kV, 0.0, spurious, 1);
+  ASSERT_TRUE(alone.valid);
+  EXPECT_GT(alone.evaluations, 2 * e.evaluations);
+  EXPECT_TRUE(alone.apart);
+  EXPECT_FALSE(alone.near_prior);
+  EXPECT_EQ(ground.share(alone), 0.0);
+}
+
+TEST(GroundYaw, SharesTheWindowByAgreement) {
+  GroundYawOptions o;
+  o.weight = 0.8;
+  GroundYaw ground(o, camera(), carMount());
+  GroundYawEstimate e;
+  EXPECT_EQ(ground.share(e), 0.0);  // not valid
+  e.valid = true;
+  EXPECT_EQ(ground.share(e), 0.0);  // no peak
+  e.curvature = 100.0;
+  EXPECT_EQ(ground.share(e), 0.8);
+  e.apart = true;
+  EXPECT_EQ(ground.share(e), 0.0);  // apart from the VWE's and the previous window's: spurious
+  e.near_prior = true;
+  EXPECT_EQ(ground.share(e), 1.0);  // apart from the VWE's only: the VWE's was spurious
 }

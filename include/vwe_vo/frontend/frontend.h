@@ -154,11 +154,15 @@ struct ArcEstimate {
   /// the roll, whose windows scatter less (docs/method.md).
   double roll_omega_shift = 0.0;
   double omegaWithoutRoll() const { return omega - roll_omega_shift; }
-  /// The road's measurement (frontend.ground), averaged into omega: its yaw rate [rad/s] and the
-  /// body's pitch and roll at t_ref it found [rad]; NaN in windows without it.
+  /// The road's measurement (frontend.ground), averaged into omega with road_share: its yaw rate
+  /// [rad/s], the body's pitch at t_ref [rad] and its rate [rad/s] it found, the roll it was
+  /// warped with [rad] and its curvature (GroundYawEstimate); NaN in windows without it.
   double road_omega = std::numeric_limits<double>::quiet_NaN();
   double road_pitch = std::numeric_limits<double>::quiet_NaN();
+  double road_pitch_rate = std::numeric_limits<double>::quiet_NaN();
   double road_roll = std::numeric_limits<double>::quiet_NaN();
+  double road_curvature = std::numeric_limits<double>::quiet_NaN();
+  double road_share = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Dead reckoning through the arcs with omegaWithoutRoll() and v ramping between the arcs'
@@ -186,7 +190,9 @@ struct FrontendStats {
       0;                          // one-sided, but the structure nearer than one_sided.min_depth_m
   size_t windows_ground = 0;      // yaw rate averaged with the road's (ground.weight)
   size_t windows_ground_few = 0;  // ... not: fewer road events than ground.min_events
-  size_t ground_evaluations = 0;  // of the road's objective
+  size_t windows_ground_alone = 0;  // ... the road's alone (GroundYaw::share: the VWE's was apart)
+  size_t windows_ground_refused = 0;  // ... the VWE's alone (the road's was apart or had no peak)
+  size_t ground_evaluations = 0;      // of the road's objective
   double ground_shift_abs_sum_rad_s = 0.0;  // sum of |road - VWE| yaw rate [rad/s]
 };
 

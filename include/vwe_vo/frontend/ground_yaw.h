@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -26,13 +27,15 @@ namespace vwe_vo {
 struct GroundYawOptions {
   // The road's share of a window's yaw rate: (1 - weight) VWE + weight road (0: off). On a bumpy
   // street (0.3 s windows) the road is ~0.45 deg/s RMS off, the VWE ~1.0, nearly independently:
-  // their inverse variances give the road 0.8 (car.yaml).
+  // their inverse variances give the road 0.8 (car.yaml). Where the two lie further apart than
+  // half_range_rad_s, one of them is alone (GroundYaw::share).
   double weight = 0.0;
   GroundObjectiveOptions objective;
-  size_t max_events = 10000;                 // road events per window (uniform per time slice)
-  size_t min_events = 2000;                  // fewer: the window keeps the VWE's yaw rate
-  double half_range_rad_s = 0.075;           // searched within +-this of the VWE's yaw rate [rad/s]
-  double step_rad_s = 0.0025;                // finest step of that search [rad/s]
+  size_t max_events = 10000;  // road events per window (uniform per time slice)
+  size_t min_events = 2000;   // fewer: the window keeps the VWE's yaw rate
+  double half_range_rad_s =
+      0.075;                   // searched within +-this of the VWE's yaw rate (estimate()) [rad/s]
+  double step_rad_s = 0.0025;  // finest step of that search [rad/s]
   double pitch_half_range_deg = 0.6;         // the body's pitch, searched within +-this
   double pitch_step_deg = 0.1;               // in these steps [deg]
   double pitch_rate_half_range_deg_s = 2.0;  // its rate likewise [deg/s]
@@ -61,6 +64,14 @@ struct GroundYawEstimate {
   double pitch = 0.0, pitch_rate = 0.0;  // the nuisance at its best [rad, rad/s]
   double roll = 0.0;                     // the lean it was warped with [rad]
   double contrast = 0.0;
+  // -f''/f over the yaw rate at the best (0: no peak) [(rad/s)^-2]: how sharply the road's
+  // contrast peaks. Broad where its texture holds few edges across the motion; there the estimate
+  // scatters with the events voted (street_drive, 12 subsamples of a window: 0.05-0.15 deg/s
+  // apart at 160-300 (rad/s)^-2, 0.2-0.4 at 30, 1 at 15), yet stays better than the VWE's.
+  double curvature = 0.0;
+  // The road's yaw rate lies beyond half_range_rad_s of omega_center (the VWE's): one of the two
+  // found a spurious peak. near_prior: it lies within half_range_rad_s of omega_prior.
+  bool apart = false, near_prior = false;
   size_t events = 0;  // road events voted
   int evaluations = 0;
 };
@@ -95,10 +106,17 @@ class GroundYaw {
   const GroundYawOptions& options() const { return options_; }
   /// The road's yaw rate of a window's events [t0, t1] (all of them: this picks the road's),
   /// driven at v [m/s] about t_ref and accelerating at dv [m/s^2] (the dive's centre for the
-  /// pitch), searched around omega_center [rad/s].
+  /// pitch), searched around omega_center [rad/s] (the VWE's) and, where that lies further than
+  /// half_range_rad_s from it, around omega_prior too (the previous window's; NaN: none).
   GroundYawEstimate estimate(const EventVector& events, int64_t t0_ns, int64_t t1_ns,
                              int64_t t_ref_ns, double v, double dv, double omega_center,
-                             uint64_t seed);
+                             uint64_t seed,
+                             double omega_prior = std::numeric_limits<double>::quiet_NaN());
+  /// The road's share of a window's yaw rate for this estimate: GroundYawOptions::weight; where
+  /// it lies apart from the VWE's, 1 if the previous window's yaw rate is near it (the VWE's peak
+  /// was spurious) and 0 if not (the road's was); 0 where the road's contrast has no peak or it is
+  /// not valid.
+  double share(const GroundYawEstimate& road) const;
 
  private:
   struct Params {
