@@ -31,13 +31,12 @@ struct GroundYawOptions {
   // half_range_rad_s, one of them is alone (GroundYaw::share).
   double weight = 0.0;
   GroundObjectiveOptions objective;
-  size_t max_events = 10000;  // road events per window (uniform per time slice)
-  size_t min_events = 2000;   // fewer: the window keeps the VWE's yaw rate
-  double half_range_rad_s =
-      0.075;                   // searched within +-this of the VWE's yaw rate (estimate()) [rad/s]
-  double step_rad_s = 0.0025;  // finest step of that search [rad/s]
-  double pitch_half_range_deg = 0.6;         // the body's pitch, searched within +-this
-  double pitch_step_deg = 0.1;               // in these steps [deg]
+  size_t max_events = 10000;          // road events per window (uniform per time slice)
+  size_t min_events = 2000;           // fewer: the window keeps the VWE's yaw rate
+  double half_range_rad_s = 0.075;    // searched +-this around the VWE's (estimate()) [rad/s]
+  double step_rad_s = 0.0025;         // finest step of that search [rad/s]
+  double pitch_half_range_deg = 0.6;  // the body's pitch, searched within +-this
+  double pitch_step_deg = 0.1;        // in these steps [deg]
   double pitch_rate_half_range_deg_s = 2.0;  // its rate likewise [deg/s]
   double pitch_rate_step_deg_s = 0.25;
   // The body's pitch per g of deceleration, nose down (backend.pitch_per_g_deg, which the
