@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <utility>
 
 #include "vwe_vo/sensor/subsample.h"
 #include "vwe_vo/trajectory/ackermann_arc.h"
@@ -143,8 +144,7 @@ GroundYawEstimate GroundYaw::estimate(const EventVector& events, int64_t t0_ns, 
       b = size_t(std::max_element(f.begin(), f.end()) - f.begin());
     }
     if (f[b] > best_f) best_f = f[b], best = ps[b];
-    if (c == &Params::omega) last_omega = {ps, f};
-    return std::make_pair(ps, f);
+    if (c == &Params::omega) last_omega = {std::move(ps), std::move(f)};
   };
   // The yaw rate coarse (four fine steps) over the range, then fine around the best. Where the
   // VWE's yaw rate jumped away from the previous window's (a full scan that found a spurious peak:
